@@ -1,0 +1,85 @@
+"""Byte-stable asset files and content-hash names, shared by the mesh passes."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import struct
+
+import numpy as np
+
+from .fmt import fmt_float
+from .ir import MeshAsset, MeshData
+
+_SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+def safe_stem(text: str) -> str:
+    """A name fragment safe for MJCF names and file names."""
+    stem = _SAFE.sub("_", text).strip("._") or "mesh"
+    return stem[:48]
+
+
+def content_name(stem: str, data: bytes) -> str:
+    """``<stem>_<10 hex digits of sha256(data)>``: identical content, identical suffix."""
+    return f"{safe_stem(stem)}_{hashlib.sha256(data).hexdigest()[:10]}"
+
+
+def stl_bytes(mesh: MeshData) -> bytes:
+    """Binary STL with an all-zero header, so the bytes depend on geometry alone."""
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    tri = v[f]  # (m, 3, 3)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+    rec = np.zeros(len(f), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    rec["n"] = n
+    rec["v"] = tri
+    return b"\0" * 80 + struct.pack("<I", len(f)) + rec.tobytes()
+
+
+def obj_bytes(mesh: MeshData) -> bytes:
+    """Wavefront OBJ with texture coordinates when the mesh has them."""
+    lines = ["# urdf2mjcf"]
+    lines += [f"v {fmt_float(x)} {fmt_float(y)} {fmt_float(z)}" for x, y, z in mesh.vertices]
+    if mesh.uv is not None:
+        lines += [f"vt {fmt_float(u)} {fmt_float(w)}" for u, w in mesh.uv]
+        lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in mesh.faces]
+    else:
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def mesh_asset(stem: str, mesh: MeshData) -> MeshAsset:
+    """A content-named asset: OBJ when the mesh carries texture coordinates, else STL."""
+    if mesh.uv is not None:
+        data, ext = obj_bytes(mesh), "obj"
+    else:
+        data, ext = stl_bytes(mesh), "stl"
+    name = content_name(stem, data)
+    return MeshAsset(name=name, file=f"{name}.{ext}", data=data)
+
+
+def merge_assets(existing: tuple[MeshAsset, ...], new: list[MeshAsset]) -> tuple[tuple[MeshAsset, ...], dict[str, str]]:
+    """Add ``new`` to ``existing``, storing identical content once.
+
+    Returns the combined assets and a map from each new asset's name to the
+    name it is stored under (the first asset with the same bytes wins).
+    """
+    by_data = {hashlib.sha256(a.data).digest(): a.name for a in existing}
+    out = list(existing)
+    renamed: dict[str, str] = {}
+    names = {a.name for a in existing}
+    for asset in new:
+        key = hashlib.sha256(asset.data).digest()
+        if key in by_data:
+            renamed[asset.name] = by_data[key]
+            continue
+        if asset.name in names:  # same stem and hash prefix but different bytes: impossible in practice
+            raise RuntimeError(f"asset name collision: {asset.name}")
+        by_data[key] = asset.name
+        names.add(asset.name)
+        out.append(asset)
+        renamed[asset.name] = asset.name
+    return tuple(out), renamed

@@ -1,0 +1,377 @@
+"""Typed, frozen data that flows between the compiler passes.
+
+Two layers:
+
+* the URDF layer (:class:`Robot` and its parts), produced by ``passes.parse``;
+* the MJCF layer (:class:`Model`: geoms, assets, inertials per link), built up
+  by ``passes.meshes``, ``passes.collision`` and ``passes.inertia`` and read
+  by ``passes.emit``.
+
+Conventions: lengths in metres, angles in radians, masses in kilograms,
+quaternions ``(w, x, y, z)`` as MuJoCo writes them, inertia tensors about the
+centre of mass. Nothing here touches the file system.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Literal, Union
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+RGBA = tuple[float, float, float, float]
+
+# ---------------------------------------------------------------------------
+# URDF layer
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A URDF ``<origin>``: translation then fixed-axis roll, pitch, yaw."""
+
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    """(3,) float, metres."""
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+    """(3,) float, radians; R = Rz(yaw) @ Ry(pitch) @ Rx(roll)."""
+
+    @property
+    def is_identity(self) -> bool:
+        return self.xyz == (0.0, 0.0, 0.0) and self.rpy == (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Box:
+    size: Vec3
+    """(3,) full edge lengths, metres."""
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    radius: float
+    length: float
+    """Full length along the local z axis, metres."""
+
+
+@dataclass(frozen=True)
+class Sphere:
+    radius: float
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """Non-standard but common URDF extension: cylinder with hemispherical caps."""
+
+    radius: float
+    length: float
+    """Length of the cylindrical part along z, metres."""
+
+
+@dataclass(frozen=True)
+class MeshRef:
+    filename: str
+    """The file name exactly as written in the URDF (for messages)."""
+    path: Path | None
+    """Resolved absolute path, or None when it could not be resolved."""
+    scale: Vec3 = (1.0, 1.0, 1.0)
+
+
+Geometry = Union[Box, Cylinder, Sphere, Capsule, MeshRef]
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    rgba: RGBA | None = None
+    texture: Path | None = None
+    """Resolved absolute path of an image texture, if any."""
+
+
+@dataclass(frozen=True)
+class Visual:
+    origin: Pose
+    geometry: Geometry
+    material: Material | None = None
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class Collision:
+    origin: Pose
+    geometry: Geometry
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class Inertial:
+    origin: Pose
+    """Centre of mass and orientation of the frame ``inertia`` is written in."""
+    mass: float
+    """kg."""
+    inertia: tuple[float, float, float, float, float, float]
+    """(ixx, ixy, ixz, iyy, iyz, izz), kg m^2, about the COM in the ``origin`` frame."""
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    inertial: Inertial | None = None
+    visuals: tuple[Visual, ...] = ()
+    collisions: tuple[Collision, ...] = ()
+
+
+JointType = Literal["revolute", "continuous", "prismatic", "fixed", "floating", "planar"]
+JOINT_TYPES: tuple[str, ...] = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+
+
+@dataclass(frozen=True)
+class Limit:
+    lower: float | None = None
+    """rad or m; None when absent."""
+    upper: float | None = None
+    effort: float | None = None
+    """N m or N; None when absent."""
+    velocity: float | None = None
+    """rad/s or m/s."""
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    damping: float = 0.0
+    """N m s/rad or N s/m."""
+    friction: float = 0.0
+    """Coulomb (dry) friction, N m or N."""
+
+
+@dataclass(frozen=True)
+class Mimic:
+    joint: str
+    """Name of the leader joint."""
+    multiplier: float = 1.0
+    offset: float = 0.0
+    """follower = multiplier * leader + offset."""
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    type: JointType
+    parent: str
+    child: str
+    origin: Pose = Pose()
+    axis: Vec3 = (1.0, 0.0, 0.0)
+    """(3,) unit vector in the joint (= child link) frame."""
+    limit: Limit | None = None
+    dynamics: Dynamics | None = None
+    mimic: Mimic | None = None
+
+
+@dataclass(frozen=True)
+class Extension:
+    """A URDF extension element kept verbatim for later passes to map."""
+
+    tag: str
+    """``ros2_control``, ``transmission``, ``gazebo`` or ``mujoco``."""
+    xml: str
+    """The element serialised as XML text (kept as text so the IR stays immutable)."""
+
+
+@dataclass(frozen=True)
+class Robot:
+    name: str
+    source: Path
+    """The file the description was read from (for error messages)."""
+    links: tuple[Link, ...]
+    joints: tuple[Joint, ...]
+    materials: tuple[Material, ...] = ()
+    """Top-level named materials."""
+    extensions: tuple[Extension, ...] = ()
+
+    @cached_property
+    def link_map(self) -> dict[str, Link]:
+        return {link.name: link for link in self.links}
+
+    @cached_property
+    def joint_map(self) -> dict[str, Joint]:
+        return {joint.name: joint for joint in self.joints}
+
+    @cached_property
+    def parent_joint(self) -> dict[str, Joint]:
+        """Child link name -> the joint that attaches it."""
+        return {joint.child: joint for joint in self.joints}
+
+    @cached_property
+    def child_joints(self) -> dict[str, tuple[Joint, ...]]:
+        """Link name -> joints whose parent it is, in document order."""
+        out: dict[str, list[Joint]] = {link.name: [] for link in self.links}
+        for joint in self.joints:
+            out.setdefault(joint.parent, []).append(joint)
+        return {k: tuple(v) for k, v in out.items()}
+
+    @cached_property
+    def root(self) -> str | None:
+        """The single root link (None for an empty robot); parse guarantees uniqueness."""
+        roots = [link.name for link in self.links if link.name not in self.parent_joint]
+        return roots[0] if roots else None
+
+    def is_moving(self, link: str) -> bool:
+        """True when some non-fixed joint lies between the root and ``link``."""
+        while link in self.parent_joint:
+            joint = self.parent_joint[link]
+            if joint.type != "fixed":
+                return True
+            link = joint.parent
+        return False
+
+    def topological_links(self) -> tuple[str, ...]:
+        """Link names, parents before children, siblings in document order."""
+        if self.root is None:
+            return ()
+        order: list[str] = []
+        stack = [self.root]
+        while stack:
+            name = stack.pop()
+            order.append(name)
+            stack.extend(j.child for j in reversed(self.child_joints.get(name, ())))
+        return tuple(order)
+
+
+# ---------------------------------------------------------------------------
+# MJCF layer
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class MeshData:
+    """A triangle mesh in metres (URDF scale applied) in its mesh-file frame."""
+
+    vertices: np.ndarray
+    """(n, 3) float64, metres."""
+    faces: np.ndarray
+    """(m, 3) int64 vertex indices, counter-clockwise seen from outside."""
+    uv: np.ndarray | None = None
+    """(n, 2) float64 texture coordinates per vertex, or None."""
+
+
+@dataclass(frozen=True, eq=False)
+class MeshPart:
+    """One material's share of a loaded mesh file."""
+
+    mesh: MeshData
+    material: str | None
+    """Name of a :class:`MaterialAsset`, or None for the element's own colour."""
+
+
+@dataclass(frozen=True, eq=False)
+class LoadedMesh:
+    """A mesh file loaded once for a given scale."""
+
+    path: Path
+    scale: Vec3
+    parts: tuple[MeshPart, ...]
+    """Per-material pieces (visual use)."""
+    merged: MeshData
+    """All parts in one mesh (collision and inertia use)."""
+    sha256: str
+    """Hash of the file content and scale: the identity of this mesh."""
+
+
+@dataclass(frozen=True)
+class MeshAsset:
+    """A mesh file written to ``assets/``."""
+
+    name: str
+    """MJCF asset name; unique, derived from the source stem and the content hash."""
+    file: str
+    """File name inside ``assets/``."""
+    data: bytes = field(repr=False)
+    """Exact file content (binary STL or OBJ)."""
+
+
+@dataclass(frozen=True)
+class TextureAsset:
+    name: str
+    file: str
+    data: bytes = field(repr=False)
+
+
+@dataclass(frozen=True)
+class MaterialAsset:
+    name: str
+    rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
+    texture: str | None = None
+    """Name of a :class:`TextureAsset`."""
+
+
+GeomType = Literal["box", "sphere", "cylinder", "capsule", "mesh"]
+
+
+@dataclass(frozen=True)
+class Geom:
+    role: Literal["visual", "collision"]
+    type: GeomType
+    pos: Vec3
+    """Position in the link frame, metres."""
+    quat: Quat
+    """Orientation in the link frame, (w, x, y, z)."""
+    size: tuple[float, ...] = ()
+    """MuJoCo size semantics: box half-extents; sphere radius; cylinder/capsule
+    (radius, half-length). Empty for meshes."""
+    mesh: str | None = None
+    """MeshAsset name for mesh geoms."""
+    material: str | None = None
+    """MaterialAsset name."""
+    rgba: RGBA | None = None
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class BodyInertial:
+    mass: float
+    """kg."""
+    pos: Vec3
+    """Centre of mass in the link frame, metres."""
+    fullinertia: tuple[float, float, float, float, float, float]
+    """MuJoCo order (ixx, iyy, izz, ixy, ixz, iyz), kg m^2, about the COM, link axes."""
+    source: Literal["urdf", "repaired", "estimated"] = "urdf"
+
+
+NoteKind = Literal[
+    "warning", "repaired", "estimated", "decomposed", "cached", "hull", "decimated", "info"
+]
+"""``decomposed``: CoACD ran; ``cached``: a decomposition came from the disk cache."""
+
+
+@dataclass(frozen=True)
+class Note:
+    """One line of the conversion report."""
+
+    kind: NoteKind
+    element: str
+    """What it concerns, e.g. ``link 'base'`` or ``mesh 'meshes/arm.stl'``."""
+    message: str
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Everything emit needs: the robot plus per-link geoms, inertials and assets.
+
+    Mappings are keyed by link name and must not be mutated: passes build new
+    ones and return ``dataclasses.replace(model, ...)``.
+    """
+
+    robot: Robot
+    meshes: Mapping[tuple[Path, Vec3], LoadedMesh] = field(default_factory=dict)
+    """Loaded mesh files keyed by (path, scale)."""
+    mesh_assets: tuple[MeshAsset, ...] = ()
+    textures: tuple[TextureAsset, ...] = ()
+    materials: tuple[MaterialAsset, ...] = ()
+    visual_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
+    collision_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
+    inertials: Mapping[str, BodyInertial | None] = field(default_factory=dict)
+    notes: tuple[Note, ...] = ()
