@@ -18,9 +18,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Literal, Union
+from typing import TYPE_CHECKING, Literal, Union
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .packages import PackageResolver
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -29,6 +32,19 @@ RGBA = tuple[float, float, float, float]
 # ---------------------------------------------------------------------------
 # URDF layer
 # ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class UrdfDocument:
+    """Output of the xacro pass: plain URDF text and how to resolve its URIs."""
+
+    source: Path
+    """The file the user gave (``.urdf``, ``.xacro`` or ``.urdf.xacro``)."""
+    xml: bytes
+    """The expanded URDF document."""
+    resolver: "PackageResolver"
+    expanded: bool = False
+    """True when xacro ran on the source."""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,37 @@
+"""Shared fixtures: a per-session decomposition cache, so tests never touch ~/.cache."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    cache = tmp_path_factory.getbasetemp().parent / "urdf2mjcf-cache"
+    cache.mkdir(parents=True, exist_ok=True)
+    os.environ["URDF2MJCF_CACHE"] = str(cache)
+    return cache
+
+
+@pytest.fixture
+def data_dir() -> Path:
+    return DATA
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--update-golden",
+        action="store_true",
+        default=False,
+        help="Rewrite tests/golden/*.xml from the current output instead of comparing.",
+    )
+
+
+@pytest.fixture
+def update_golden(request: pytest.FixtureRequest) -> bool:
+    return bool(request.config.getoption("--update-golden"))

@@ -1,0 +1,3 @@
+from .cli import urdf2mjcf_main
+
+urdf2mjcf_main()

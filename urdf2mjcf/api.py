@@ -1,0 +1,137 @@
+"""The Python API: chain the passes. The command line is a thin layer on this."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from . import output as out
+from .errors import OutputError
+from .ir import Model
+from .passes import collision, emit, inertia, meshes, parse, validate, xacro
+from .report import Report
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ConvertOptions:
+    """Every option of a conversion, one config per pass, defaults in one place."""
+
+    xacro: xacro.XacroConfig = field(default_factory=xacro.XacroConfig)
+    meshes: meshes.MeshConfig = field(default_factory=meshes.MeshConfig)
+    collision: collision.CollisionConfig = field(default_factory=collision.CollisionConfig)
+    inertia: inertia.InertiaConfig = field(default_factory=inertia.InertiaConfig)
+    emit: emit.EmitConfig = field(default_factory=emit.EmitConfig)
+    validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
+    scene: bool = True
+    """Also write ``scene.xml`` (floor, light, sky) beside the robot."""
+    overwrite: bool = False
+
+
+def make_options(
+    *,
+    args: Mapping[str, str] | None = None,
+    package_paths: Sequence[str | Path] = (),
+    packages: Mapping[str, str | Path] | None = None,
+    use_environment: bool = True,
+    density: float = 1000.0,
+    link_density: Mapping[str, float] | None = None,
+    collision_source: str = "collision",
+    cache_dir: str | Path | None = None,
+    use_cache: bool = True,
+    workers: int = 0,
+    progress: Callable[[int, int, str], None] | None = None,
+    strict: bool = False,
+    max_faces: int = 200_000,
+    fuse_fixed: bool = False,
+    floating_base: bool = False,
+    model_name: str | None = None,
+    scene: bool = True,
+    validate_model: bool = True,
+    overwrite: bool = False,
+) -> ConvertOptions:
+    """Keyword options (as :func:`convert` takes them) -> :class:`ConvertOptions`."""
+    return ConvertOptions(
+        xacro=xacro.XacroConfig(
+            args=dict(args or {}),
+            packages={k: Path(v) for k, v in (packages or {}).items()},
+            package_paths=tuple(Path(p) for p in package_paths),
+            use_environment=use_environment,
+        ),
+        meshes=meshes.MeshConfig(max_faces=max_faces, strict_visual=strict),
+        collision=collision.CollisionConfig(
+            source=collision_source,  # type: ignore[arg-type]
+            cache_dir=Path(cache_dir) if cache_dir else None,
+            use_cache=use_cache,
+            workers=workers,
+            progress=progress,
+        ),
+        inertia=inertia.InertiaConfig(density=density, link_density=dict(link_density or {})),
+        emit=emit.EmitConfig(fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name),
+        validate=validate.ValidateConfig(enabled=validate_model),
+        scene=scene,
+        overwrite=overwrite,
+    )
+
+
+def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
+    """Run passes 1-6 in memory: no file is written."""
+    doc = xacro.run(Path(source), options.xacro)
+    model = parse.run(doc)
+    model = meshes.run(model, options.meshes)
+    model = collision.run(model, options.collision)
+    model = inertia.run(model, options.inertia)
+    result = emit.run(model, options.emit)
+    return replace(model, notes=model.notes + result.notes), result
+
+
+def convert(source: str | Path, output: str | Path, options: ConvertOptions | None = None, **kwargs) -> Report:
+    """Convert a URDF or xacro file into ``output`` (an ``.xml`` path).
+
+    Writes ``output``, its meshes and textures under ``assets/`` beside it and,
+    unless ``scene=False``, a ``scene.xml`` that includes it. Either pass a
+    :class:`ConvertOptions` or keyword options (see :func:`make_options`).
+    Raises a :class:`~urdf2mjcf.errors.ConversionError` on bad input; then
+    nothing has been written.
+    """
+    if options is None:
+        options = make_options(**kwargs)
+    elif kwargs:
+        raise TypeError("pass either options or keyword options, not both")
+    source, output = Path(source), Path(output)
+    scene_name = "scene.xml"
+    if options.scene and output.name == scene_name:
+        raise OutputError("output would be overwritten by scene.xml; choose another name or --no-scene", file=output)
+    out.check_target(output, options.overwrite, (scene_name,) if options.scene else ())
+
+    model, result = build(source, options)
+    files = dict(result.files)
+    files[output.name] = result.xml
+    check = output
+    if options.scene:
+        files[scene_name] = emit.scene_xml(output.name, options.emit.model_name or model.robot.name)
+        check = output.with_name(scene_name)
+    validated: list = []
+
+    def run_validation(staged: Path) -> None:
+        staged_target = staged.with_name(check.name)
+        validated.append(validate.run(staged_target, options.validate, report_as=check))
+
+    written = out.write_atomic(output, files, run_validation)
+    robot = model.robot
+    return Report(
+        source=source,
+        output=output,
+        robot=robot.name,
+        links=len(robot.links),
+        joints=len(robot.joints),
+        bodies=validated[0].nbody - 1 if validated and validated[0] else len(robot.links),
+        geoms=sum(len(v) for v in model.visual_geoms.values()) + sum(len(v) for v in model.collision_geoms.values()),
+        meshes=len(model.mesh_assets),
+        files=tuple(written),
+        notes=model.notes,
+        model=model,
+    )

@@ -1,0 +1,146 @@
+"""Command line: builds options, calls the library, reports. Nothing else."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import click
+
+from .errors import ConversionError
+
+
+def _configure_logging(verbose: int, quiet: bool) -> None:
+    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+
+
+class _Progress:
+    """A click progress bar that appears only when there is long work."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.bar = None
+
+    def __call__(self, done: int, total: int, label: str) -> None:
+        if not self.enabled:
+            return
+        if self.bar is None:
+            self.bar = click.progressbar(length=total, label="decomposing collision meshes", file=sys.stderr)
+            self.bar.__enter__()
+        self.bar.update(done - self.bar.pos)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+
+
+def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
+    out = {}
+    for item in values:
+        name, found, value = item.partition(sep)
+        if not found or not name:
+            raise click.BadParameter(f"'{item}' is not {what}")
+        out[name] = value
+    return out
+
+
+@click.command("urdf2mjcf", context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
+@click.option("-o", "--output", required=True, type=click.Path(path_type=Path, dir_okay=False), help="MJCF file to write; meshes go to assets/ beside it.")
+@click.option("--package-path", multiple=True, type=click.Path(path_type=Path, file_okay=False), help="Folder whose sub-folders are ROS packages (repeatable).")
+@click.option("--package", "packages", multiple=True, metavar="NAME=DIR", help="Location of one package (repeatable).")
+@click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
+@click.option("--density", type=float, default=1000.0, show_default=True, help="kg/m^3 for links with geometry but no inertial.")
+@click.option("--link-density", multiple=True, metavar="LINK=KG_PER_M3", help="Per-link density override (repeatable).")
+@click.option("--collision", "collision_source", type=click.Choice(["collision", "visual", "none"]), default="collision", show_default=True, help="Where collision geometry comes from.")
+@click.option("--fuse-fixed", is_flag=True, help="Merge links on fixed joints into their parent (each leaves a site).")
+@click.option("--floating-base", is_flag=True, help="Give the root link a free joint.")
+@click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
+@click.option("--no-scene", is_flag=True, help="Do not write scene.xml.")
+@click.option("--overwrite", is_flag=True, help="Replace existing output files.")
+@click.option("--strict", is_flag=True, help="A missing or unreadable visual mesh is an error, not a warning.")
+@click.option("--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo.")
+@click.option("--cache-dir", type=click.Path(path_type=Path, file_okay=False), help="Where convex decompositions are cached.")
+@click.option("--no-cache", is_flag=True, help="Neither read nor write the decomposition cache.")
+@click.option("-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU).")
+@click.option("--max-faces", type=int, default=200_000, show_default=True, help="Decimate meshes above this face count.")
+@click.option("--report", "report_path", type=click.Path(path_type=Path, dir_okay=False), help="Also write the conversion report as JSON.")
+@click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+def urdf2mjcf_command(source, xacro_args, output, package_path, packages, no_ros_env, density, link_density, collision_source, fuse_fixed, floating_base, model_name, no_scene, overwrite, strict, no_validate, cache_dir, no_cache, jobs, max_faces, report_path, verbose, quiet):
+    """Convert a URDF or xacro robot description SOURCE into MuJoCo MJCF.
+
+    xacro arguments are given as NAME:=VALUE, exactly as with ROS.
+    """
+    from . import api  # keep `--help` fast
+
+    _configure_logging(verbose, quiet)
+    try:
+        densities = {k: float(v) for k, v in _pairs(link_density, "=", "LINK=DENSITY").items()}
+    except ValueError:
+        raise click.BadParameter("density must be a number", param_hint="--link-density") from None
+    progress = _Progress(enabled=not quiet and sys.stderr.isatty())
+    try:
+        options = api.make_options(
+            args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
+            package_paths=package_path,
+            packages=_pairs(packages, "=", "NAME=DIR"),
+            use_environment=not no_ros_env,
+            density=density,
+            link_density=densities,
+            collision_source=collision_source,
+            cache_dir=cache_dir,
+            use_cache=not no_cache,
+            workers=jobs,
+            progress=progress,
+            strict=strict,
+            max_faces=max_faces,
+            fuse_fixed=fuse_fixed,
+            floating_base=floating_base,
+            model_name=model_name,
+            scene=not no_scene,
+            validate_model=not no_validate,
+            overwrite=overwrite,
+        )
+        report = api.convert(source, output, options)
+    except ConversionError as exc:
+        progress.close()
+        logging.getLogger(__name__).debug("conversion failed", exc_info=True)
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    progress.close()
+    if report_path:
+        report_path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
+    if not quiet:
+        for note in report.notes:
+            if note.kind == "warning" or verbose:
+                click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
+        click.echo(f"wrote {output}")
+        click.echo(report.summary())
+
+
+def run_command(command: click.Command, args: list[str] | None = None) -> None:
+    """Run ``command`` so that every failure is one ``error:`` line and exit code 2."""
+    try:
+        command.main(args=args, standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except click.Abort:
+        click.echo("error: aborted", err=True)
+        sys.exit(2)
+    except click.UsageError as exc:
+        hint = f" (see '{command.name} --help')"
+        click.echo(f"error: {exc.format_message()}{hint}", err=True)
+        sys.exit(2)
+    except click.ClickException as exc:
+        click.echo(f"error: {exc.format_message()}", err=True)
+        sys.exit(2)
+    sys.exit(0)
+
+
+def urdf2mjcf_main() -> None:
+    run_command(urdf2mjcf_command)

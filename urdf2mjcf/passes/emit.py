@@ -1,0 +1,383 @@
+"""Pass 6: :class:`~urdf2mjcf.ir.Model` -> MJCF text in MuJoCo Menagerie's style.
+
+Every URDF link becomes a body of the same name and every joint keeps its
+name (fixed links are kept unless ``fuse_fixed``). A root link named
+``world`` is MuJoCo's own world body. Numbers are written with ``repr`` so
+doubles round-trip; the output is a pure function of the model.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from lxml import etree
+
+from ..errors import URDFError
+from ..fmt import fmt_float, fmt_vec
+from ..ir import BodyInertial, Geom, Joint, Model, Note, Quat, Vec3
+from ..transforms import (
+    IDENTITY_QUAT,
+    inertia_matrix,
+    matrix_to_quat,
+    mujoco_fullinertia,
+    pose_matrix,
+    quat_from_rpy,
+    quat_to_matrix,
+    split_transform,
+    transform,
+    vec3,
+)
+
+log = logging.getLogger(__name__)
+
+WORLD = "world"
+
+
+@dataclass(frozen=True)
+class EmitConfig:
+    fuse_fixed: bool = False
+    """Merge links attached by fixed joints into their parent (each leaves a site)."""
+    floating_base: bool = False
+    """Give the root link a free joint (legged robots, mobile bases)."""
+    model_name: str | None = None
+    """``<mujoco model=...>``; default: the URDF robot name."""
+    meshdir: str = "assets"
+    mimic_solref: tuple[float, float] = (0.005, 1.0)
+    """Stiff equality so mimic followers track their leader closely."""
+    mimic_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
+
+
+@dataclass(frozen=True)
+class EmitResult:
+    xml: bytes
+    """The robot MJCF document."""
+    files: dict[str, bytes]
+    """Asset files by path relative to the MJCF file (``assets/<name>``)."""
+    qpos_home: tuple[float, ...]
+    notes: tuple[Note, ...] = ()
+
+
+# -- body tree ---------------------------------------------------------------
+
+
+@dataclass
+class _Body:
+    name: str
+    pos: Vec3 = (0.0, 0.0, 0.0)
+    quat: Quat = IDENTITY_QUAT
+    joint: Joint | None = None
+    inertial: BodyInertial | None = None
+    geoms: list[Geom] = field(default_factory=list)
+    sites: list[tuple[str, Vec3, Quat]] = field(default_factory=list)
+    children: list[_Body] = field(default_factory=list)
+
+
+def _moved_geom(g: Geom, t: np.ndarray) -> Geom:
+    pos, quat = split_transform(t @ transform(g.pos, g.quat))
+    return Geom(**{**g.__dict__, "pos": pos, "quat": quat})
+
+
+def _combine(a: BodyInertial | None, b: BodyInertial | None, t: np.ndarray) -> BodyInertial | None:
+    """Inertial of ``a`` plus ``b`` given in a frame placed at ``t`` (parallel axis theorem)."""
+    if b is None:
+        return a
+    r = t[:3, :3]
+    com_b = t[:3, :3] @ np.array(b.pos) + t[:3, 3]
+    ib = r @ _mat(b.fullinertia) @ r.T
+    if a is None:
+        return BodyInertial(b.mass, vec3(com_b), mujoco_fullinertia(ib), b.source)
+    m = a.mass + b.mass
+    com = (a.mass * np.array(a.pos) + b.mass * com_b) / m
+
+    def shifted(inertia: np.ndarray, mass: float, c: np.ndarray) -> np.ndarray:
+        d = c - com
+        return inertia + mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+
+    total = shifted(_mat(a.fullinertia), a.mass, np.array(a.pos)) + shifted(ib, b.mass, com_b)
+    source = "urdf" if a.source == b.source == "urdf" else "repaired"
+    return BodyInertial(m, vec3(com), mujoco_fullinertia(total), source)
+
+
+def _mat(fi: tuple[float, ...]) -> np.ndarray:
+    ixx, iyy, izz, ixy, ixz, iyz = fi
+    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
+    robot = model.robot
+    world = _Body(WORLD)
+
+    def make(link: str) -> _Body:
+        body = _Body(link)
+        body.inertial = model.inertials.get(link)
+        body.geoms = list(model.visual_geoms.get(link, ())) + list(model.collision_geoms.get(link, ()))
+        for joint in robot.child_joints.get(link, ()):
+            child = make(joint.child)
+            child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
+            child.joint = joint if joint.type != "fixed" else None
+            if cfg.fuse_fixed and joint.type == "fixed":
+                _fuse(body, child)
+            else:
+                body.children.append(child)
+        return body
+
+    if robot.root is None:
+        return world
+    root = make(robot.root)
+    if robot.root == WORLD:
+        world.geoms, world.children, world.sites = root.geoms, root.children, root.sites
+    else:
+        world.children.append(root)
+    return world
+
+
+def _fuse(parent: _Body, child: _Body) -> None:
+    t = transform(child.pos, child.quat)
+    parent.geoms += [_moved_geom(g, t) for g in child.geoms]
+    parent.inertial = _combine(parent.inertial, child.inertial, t)
+    parent.sites.append((child.name, child.pos, child.quat))
+    for name, pos, quat in child.sites:
+        parent.sites.append((name, *split_transform(t @ transform(pos, quat))))
+    for grandchild in child.children:
+        grandchild.pos, grandchild.quat = split_transform(t @ transform(grandchild.pos, grandchild.quat))
+        parent.children.append(grandchild)
+
+
+# -- XML ---------------------------------------------------------------------
+
+
+def _set(el: etree._Element, **attrs: object) -> etree._Element:
+    for key, value in attrs.items():
+        if value is None:
+            continue
+        if isinstance(value, str):
+            el.set(key, value)
+        elif isinstance(value, (int, float)):
+            el.set(key, fmt_float(value))
+        else:
+            el.set(key, fmt_vec(value))  # type: ignore[arg-type]
+    return el
+
+
+def _pose_attrs(pos: Vec3, quat: Quat) -> dict[str, object]:
+    return {
+        "pos": pos if any(pos) else None,
+        "quat": quat if tuple(quat) != IDENTITY_QUAT else None,
+    }
+
+
+def _limits(joint: Joint, robot_source: Path, notes: list[Note]) -> tuple[float, float] | None:
+    if joint.type not in ("revolute", "prismatic") or joint.limit is None:
+        return None
+    lo, hi = joint.limit.lower, joint.limit.upper
+    if lo is None and hi is None or lo == hi:
+        notes.append(Note("warning", f"joint '{joint.name}'", "limit has no range (lower == upper); joint left unlimited"))
+        return None
+    lo, hi = lo or 0.0, hi or 0.0
+    if lo > hi:
+        raise URDFError(f"limit lower {lo!r} > upper {hi!r}", file=robot_source, element=f"joint '{joint.name}'")
+    return lo, hi
+
+
+def _joint_elements(body_el: etree._Element, body: _Body, model: Model, at_world: bool, notes: list[Note]) -> list[tuple[str, str, float]]:
+    """Write the joint(s) of ``body``; returns (name, kind, home value) per qpos block."""
+    joint = body.joint
+    if joint is None:
+        return []
+    axis = joint.axis
+    dyn = joint.dynamics
+    common: dict[str, object] = {}
+    if dyn is not None:
+        common["damping"] = dyn.damping or None
+        common["frictionloss"] = dyn.friction or None
+    if joint.type in ("revolute", "continuous", "prismatic"):
+        rng = _limits(joint, model.robot.source, notes)
+        el = etree.SubElement(body_el, "joint")
+        _set(el, name=joint.name)
+        if joint.type == "prismatic":
+            el.set("type", "slide")
+        _set(el, axis=axis, range=rng, **common)
+        effort = joint.limit.effort if joint.limit is not None else None
+        if effort is not None and effort > 0:
+            _set(el, actuatorfrcrange=(-effort, effort))
+        home = 0.0 if rng is None else min(max(0.0, rng[0]), rng[1])
+        return [(joint.name, "scalar", home)]
+    if joint.type == "floating":
+        if at_world:
+            _set(etree.SubElement(body_el, "freejoint"), name=joint.name)
+            return [(joint.name, "free", 0.0)]
+        # Free joints are only allowed on top-level bodies: three slides and a ball.
+        out = []
+        for suffix, ax in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1))):
+            _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_{suffix}", type="slide", axis=ax, **common)
+            out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
+        _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_rot", type="ball", **common)
+        return out + [(f"{joint.name}_rot", "ball", 0.0)]
+    if joint.type == "planar":
+        n = np.array(axis)
+        u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(n, u)
+        out = []
+        for suffix, ax, kind in (("x", u, "slide"), ("y", v, "slide"), ("rot", n, "hinge")):
+            _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_{suffix}", type=kind, axis=vec3(ax), **common)
+            out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
+        return out
+    raise AssertionError(joint.type)
+
+
+def _geom_element(parent: etree._Element, g: Geom) -> None:
+    el = etree.SubElement(parent, "geom")
+    _set(el, name=g.name, **{"class": g.role})
+    _set(el, type=g.type if g.type != "sphere" else None)
+    if g.type == "mesh":
+        _set(el, mesh=g.mesh)
+    else:
+        _set(el, size=g.size)
+    _set(el, **_pose_attrs(g.pos, g.quat))
+    _set(el, material=g.material, rgba=g.rgba)
+
+
+def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
+    el = etree.SubElement(parent, "inertial")
+    ixx, iyy, izz, ixy, ixz, iyz = inertial.fullinertia
+    _set(el, pos=inertial.pos, mass=inertial.mass)
+    if ixy == ixz == iyz == 0.0:
+        _set(el, diaginertia=(ixx, iyy, izz))
+    else:
+        _set(el, fullinertia=inertial.fullinertia)
+
+
+def _body_element(parent: etree._Element, body: _Body, model: Model, at_world: bool, qpos: list, notes: list[Note]) -> None:
+    el = etree.SubElement(parent, "body")
+    _set(el, name=body.name, **_pose_attrs(body.pos, body.quat))
+    if body.inertial is not None:
+        _inertial_element(el, body.inertial)
+    qpos.extend((name, kind, home, body) for name, kind, home in _joint_elements(el, body, model, at_world, notes))
+    for g in body.geoms:
+        _geom_element(el, g)
+    for name, pos, quat in body.sites:
+        _set(etree.SubElement(el, "site"), name=name, **_pose_attrs(pos, quat))
+    for child in body.children:
+        _body_element(el, child, model, False, qpos, notes)
+
+
+def _home_qpos(entries: list, model: Model) -> tuple[float, ...]:
+    """Joint zero clamped into its range; mimic followers satisfy their constraint."""
+    values: dict[str, float] = {name: home for name, kind, home, _ in entries if kind == "scalar"}
+    for joint in model.robot.joints:
+        if joint.mimic is not None and joint.name in values and joint.mimic.joint in values:
+            values[joint.name] = joint.mimic.multiplier * values[joint.mimic.joint] + joint.mimic.offset
+    out: list[float] = []
+    for name, kind, _home, body in entries:
+        if kind == "free":
+            out += [*body.pos, *body.quat]
+        elif kind == "ball":
+            out += [1.0, 0.0, 0.0, 0.0]
+        else:
+            out.append(values[name])
+    return tuple(out)
+
+
+def run(model: Model, cfg: EmitConfig) -> EmitResult:
+    robot = model.robot
+    notes: list[Note] = []
+    tree = _build_tree(model, cfg)
+    if cfg.floating_base and robot.root not in (None, WORLD) and tree.children and tree.children[0].joint is None:
+        root = tree.children[0]
+        root.joint = Joint(name=f"{root.name}_freejoint", type="floating", parent=WORLD, child=root.name)
+
+    mj = etree.Element("mujoco", model=cfg.model_name or robot.name)
+    _set(
+        etree.SubElement(mj, "compiler"),
+        angle="radian",
+        meshdir=cfg.meshdir,
+        texturedir=cfg.meshdir,
+        autolimits="true",
+        inertiafromgeom="false",  # inertials are ours: from the URDF, repaired or estimated
+    )
+    _set(etree.SubElement(mj, "option"), integrator="implicitfast")
+
+    default = etree.SubElement(mj, "default")
+    _set(etree.SubElement(etree.SubElement(default, "default"), "geom"), contype=0, conaffinity=0, group=2, density=0)
+    default[0].set("class", "visual")
+    _set(etree.SubElement(etree.SubElement(default, "default"), "geom"), group=3)
+    default[1].set("class", "collision")
+
+    files: dict[str, bytes] = {}
+    if model.textures or model.materials or model.mesh_assets:
+        asset = etree.SubElement(mj, "asset")
+        for tex in model.textures:
+            _set(etree.SubElement(asset, "texture"), name=tex.name, type="2d", file=tex.file)
+            files[f"{cfg.meshdir}/{tex.file}"] = tex.data
+        for mat in model.materials:
+            _set(etree.SubElement(asset, "material"), name=mat.name, rgba=mat.rgba, texture=mat.texture)
+        for mesh in model.mesh_assets:
+            _set(etree.SubElement(asset, "mesh"), name=mesh.name, file=mesh.file)
+            files[f"{cfg.meshdir}/{mesh.file}"] = mesh.data
+
+    worldbody = etree.SubElement(mj, "worldbody")
+    for g in tree.geoms:
+        _geom_element(worldbody, g)
+    for name, pos, quat in tree.sites:
+        _set(etree.SubElement(worldbody, "site"), name=name, **_pose_attrs(pos, quat))
+    entries: list = []
+    for child in tree.children:
+        _body_element(worldbody, child, model, True, entries, notes)
+
+    mimics = [j for j in robot.joints if j.mimic is not None and j.type != "fixed"]
+    if mimics:
+        equality = etree.SubElement(mj, "equality")
+        for j in mimics:
+            _set(
+                etree.SubElement(equality, "joint"),
+                name=f"{j.name}_mimic",
+                joint1=j.name,
+                joint2=j.mimic.joint,
+                polycoef=(j.mimic.offset, j.mimic.multiplier, 0, 0, 0),
+                solref=cfg.mimic_solref,
+                solimp=cfg.mimic_solimp,
+            )
+
+    qpos = _home_qpos(entries, model)
+    if qpos:
+        _set(etree.SubElement(etree.SubElement(mj, "keyframe"), "key"), name="home", qpos=qpos)
+
+    etree.indent(mj, space="  ")
+    xml = etree.tostring(mj, encoding="utf-8", xml_declaration=False) + b"\n"
+    return EmitResult(xml=xml, files=files, qpos_home=qpos, notes=tuple(notes))
+
+
+def scene_xml(robot_file: str, model_name: str) -> bytes:
+    """A ``scene.xml`` that includes the robot and adds floor, light and sky."""
+    mj = etree.Element("mujoco", model=f"{model_name} scene")
+    _set(etree.SubElement(mj, "include"), file=robot_file)
+    _set(etree.SubElement(mj, "statistic"), center=(0, 0, 0.4), extent=1.5)
+    visual = etree.SubElement(mj, "visual")
+    _set(etree.SubElement(visual, "headlight"), diffuse=(0.6, 0.6, 0.6), ambient=(0.3, 0.3, 0.3), specular=(0, 0, 0))
+    _set(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
+    _set(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
+    asset = etree.SubElement(mj, "asset")
+    _set(etree.SubElement(asset, "texture"), name="scene_skybox", type="skybox", builtin="gradient", rgb1=(0.3, 0.5, 0.7), rgb2=(0, 0, 0), width=512, height=3072)
+    _set(
+        etree.SubElement(asset, "texture"),
+        name="scene_groundplane",
+        type="2d",
+        builtin="checker",
+        mark="edge",
+        rgb1=(0.2, 0.3, 0.4),
+        rgb2=(0.1, 0.2, 0.3),
+        markrgb=(0.8, 0.8, 0.8),
+        width=300,
+        height=300,
+    )
+    _set(etree.SubElement(asset, "material"), name="scene_groundplane", texture="scene_groundplane", texuniform="true", texrepeat=(5, 5), reflectance=0.2)
+    worldbody = etree.SubElement(mj, "worldbody")
+    _set(etree.SubElement(worldbody, "light"), pos=(0, 0, 3.5), dir=(0, 0, -1), directional="true")
+    _set(etree.SubElement(worldbody, "geom"), name="floor", size=(0, 0, 0.05), type="plane", material="scene_groundplane")
+    etree.indent(mj, space="  ")
+    return etree.tostring(mj, encoding="utf-8") + b"\n"

@@ -1,0 +1,314 @@
+"""Pass 2: URDF text -> :class:`~urdf2mjcf.ir.Robot` inside a fresh :class:`~urdf2mjcf.ir.Model`.
+
+Checks the structure URDF requires (unique names, known joint types, one
+root, a tree) and resolves every resource URI to an absolute path. Elements
+that later passes map (``ros2_control``, ``transmission``, ``gazebo``,
+``mujoco``) are kept verbatim as :class:`~urdf2mjcf.ir.Extension`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+from lxml import etree
+
+from ..errors import InputError, URDFError
+from ..ir import (
+    JOINT_TYPES,
+    Box,
+    Capsule,
+    Collision,
+    Cylinder,
+    Dynamics,
+    Extension,
+    Geometry,
+    Inertial,
+    Joint,
+    Limit,
+    Link,
+    Material,
+    MeshRef,
+    Mimic,
+    Model,
+    Note,
+    Pose,
+    Robot,
+    Sphere,
+    UrdfDocument,
+    Visual,
+)
+from ..packages import PackageResolver
+
+EXTENSION_TAGS = ("ros2_control", "transmission", "gazebo", "mujoco")
+
+
+class _Reader:
+    """Helpers that turn attribute text into numbers with precise errors."""
+
+    def __init__(self, source: Path, resolver: PackageResolver):
+        self.source = source
+        self.resolver = resolver
+
+    def fail(self, element: str, message: str) -> URDFError:
+        return URDFError(message, file=self.source, element=element)
+
+    def floats(self, el: etree._Element, attr: str, n: int, where: str, default=None) -> tuple[float, ...]:
+        text = el.get(attr)
+        if text is None:
+            if default is None:
+                raise self.fail(where, f"<{el.tag}> is missing attribute '{attr}'")
+            return default
+        try:
+            values = tuple(float(v) for v in text.split())
+        except ValueError:
+            raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not a list of numbers") from None
+        if len(values) != n:
+            raise self.fail(where, f"<{el.tag} {attr}='{text}'> needs {n} numbers, got {len(values)}")
+        if not all(math.isfinite(v) for v in values):
+            raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not finite")
+        return values
+
+    def scalar(self, el: etree._Element, attr: str, where: str, default: float | None = None) -> float | None:
+        if el.get(attr) is None:
+            return default
+        return self.floats(el, attr, 1, where)[0]
+
+    def pose(self, el: etree._Element | None, where: str) -> Pose:
+        if el is None:
+            return Pose()
+        xyz = self.floats(el, "xyz", 3, where, (0.0, 0.0, 0.0))
+        rpy = self.floats(el, "rpy", 3, where, (0.0, 0.0, 0.0))
+        return Pose(xyz=tuple(v + 0.0 for v in xyz), rpy=tuple(v + 0.0 for v in rpy))  # type: ignore[arg-type]
+
+    def geometry(self, el: etree._Element | None, where: str) -> Geometry:
+        if el is None or len([c for c in el if isinstance(c.tag, str)]) == 0:
+            raise self.fail(where, "<geometry> is missing or empty")
+        shape = next(c for c in el if isinstance(c.tag, str))
+        kind = shape.tag
+        if kind == "box":
+            return Box(size=self.floats(shape, "size", 3, where))  # type: ignore[arg-type]
+        if kind == "cylinder":
+            return Cylinder(radius=self.scalar(shape, "radius", where), length=self.scalar(shape, "length", where))  # type: ignore[arg-type]
+        if kind == "sphere":
+            return Sphere(radius=self.scalar(shape, "radius", where))  # type: ignore[arg-type]
+        if kind == "capsule":
+            return Capsule(radius=self.scalar(shape, "radius", where), length=self.scalar(shape, "length", where))  # type: ignore[arg-type]
+        if kind == "mesh":
+            filename = shape.get("filename")
+            if not filename:
+                raise self.fail(where, "<mesh> is missing attribute 'filename'")
+            scale_text = shape.get("scale")
+            if scale_text is not None and len(scale_text.split()) == 1:
+                s = self.floats(shape, "scale", 1, where)[0]  # a single number is used by some tools
+                scale = (s, s, s)
+            else:
+                scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))
+            path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
+            return MeshRef(filename=filename, path=path, scale=tuple(v + 0.0 for v in scale))  # type: ignore[arg-type]
+        raise self.fail(where, f"unknown geometry <{kind}>; supported: box, cylinder, sphere, capsule, mesh")
+
+    def material(self, el: etree._Element, where: str, named: dict[str, Material]) -> Material:
+        name = el.get("name", "")
+        color = el.find("color")
+        texture = el.find("texture")
+        if color is None and (texture is None or not texture.get("filename")):
+            if name in named:
+                return named[name]
+            return Material(name=name)
+        rgba = self.floats(color, "rgba", 4, where) if color is not None else None
+        tex_path = None
+        if texture is not None and texture.get("filename"):
+            tex_path = self.resolver.resolve(texture.get("filename"), element=f"{where} texture")
+        return Material(name=name, rgba=rgba, texture=tex_path)  # type: ignore[arg-type]
+
+
+def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
+    name = el.get("name")
+    where = f"link '{name}'"
+    inertial = None
+    iel = el.find("inertial")
+    if iel is not None:
+        mel = iel.find("mass")
+        if mel is None:
+            raise r.fail(where, "<inertial> has no <mass>")
+        tel = iel.find("inertia")
+        if tel is None:
+            inertia = (0.0,) * 6
+        else:
+            inertia = tuple(r.scalar(tel, k, where, 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+        inertial = Inertial(origin=r.pose(iel.find("origin"), where), mass=r.scalar(mel, "value", where), inertia=inertia)  # type: ignore[arg-type]
+    visuals = []
+    for i, vel in enumerate(el.findall("visual")):
+        vwhere = f"{where} visual {i}"
+        mat_el = vel.find("material")
+        material = r.material(mat_el, vwhere, named) if mat_el is not None else None
+        visuals.append(
+            Visual(
+                origin=r.pose(vel.find("origin"), vwhere),
+                geometry=r.geometry(vel.find("geometry"), vwhere),
+                material=material,
+                name=vel.get("name"),
+            )
+        )
+    collisions = []
+    for i, cel in enumerate(el.findall("collision")):
+        cwhere = f"{where} collision {i}"
+        collisions.append(
+            Collision(origin=r.pose(cel.find("origin"), cwhere), geometry=r.geometry(cel.find("geometry"), cwhere), name=cel.get("name"))
+        )
+    return Link(name=name, inertial=inertial, visuals=tuple(visuals), collisions=tuple(collisions))  # type: ignore[arg-type]
+
+
+def _joint(el: etree._Element, r: _Reader) -> Joint:
+    name = el.get("name")
+    where = f"joint '{name}'"
+    jtype = el.get("type")
+    if jtype not in JOINT_TYPES:
+        raise r.fail(where, f"has type '{jtype}'; supported: {', '.join(JOINT_TYPES)}")
+    parent, child = el.find("parent"), el.find("child")
+    if parent is None or not parent.get("link") or child is None or not child.get("link"):
+        raise r.fail(where, "needs <parent link=...> and <child link=...>")
+    axis = (1.0, 0.0, 0.0)
+    axis_el = el.find("axis")
+    if axis_el is not None and jtype not in ("fixed", "floating"):
+        a = r.floats(axis_el, "xyz", 3, where)
+        norm = math.sqrt(sum(v * v for v in a))
+        if norm == 0.0:
+            raise r.fail(where, "has a zero-length <axis>")
+        axis = tuple(v / norm + 0.0 for v in a)  # type: ignore[assignment]
+    limit = None
+    lel = el.find("limit")
+    if lel is not None:
+        limit = Limit(
+            lower=r.scalar(lel, "lower", where),
+            upper=r.scalar(lel, "upper", where),
+            effort=r.scalar(lel, "effort", where),
+            velocity=r.scalar(lel, "velocity", where),
+        )
+    dynamics = None
+    del_ = el.find("dynamics")
+    if del_ is not None:
+        dynamics = Dynamics(damping=r.scalar(del_, "damping", where, 0.0), friction=r.scalar(del_, "friction", where, 0.0))  # type: ignore[arg-type]
+    mimic = None
+    mel = el.find("mimic")
+    if mel is not None:
+        if not mel.get("joint"):
+            raise r.fail(where, "<mimic> is missing attribute 'joint'")
+        mimic = Mimic(joint=mel.get("joint"), multiplier=r.scalar(mel, "multiplier", where, 1.0), offset=r.scalar(mel, "offset", where, 0.0))  # type: ignore[arg-type]
+    return Joint(
+        name=name,
+        type=jtype,  # type: ignore[arg-type]
+        parent=parent.get("link"),
+        child=child.get("link"),
+        origin=r.pose(el.find("origin"), where),
+        axis=axis,
+        limit=limit,
+        dynamics=dynamics,
+        mimic=mimic,
+    )
+
+
+def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> None:
+    names = set()
+    for link in robot_links:
+        if not link.name:
+            raise r.fail("link", "a <link> has no name")
+        if link.name in names:
+            raise r.fail(f"link '{link.name}'", "is defined twice; link names must be unique")
+        names.add(link.name)
+    joint_names: set[str] = set()
+    parent_of: dict[str, str] = {}
+    for j in joints:
+        if not j.name:
+            raise r.fail("joint", "a <joint> has no name")
+        if j.name in joint_names:
+            raise r.fail(f"joint '{j.name}'", "is defined twice; joint names must be unique")
+        joint_names.add(j.name)
+        for role, link in (("parent", j.parent), ("child", j.child)):
+            if link not in names:
+                raise r.fail(f"joint '{j.name}'", f"{role} link '{link}' does not exist")
+        if j.child in parent_of:
+            raise r.fail(f"joint '{j.name}'", f"link '{j.child}' already has parent joint '{parent_of[j.child]}'; a URDF must be a tree")
+        parent_of[j.child] = j.name
+    for j in joints:
+        if j.mimic is not None and j.mimic.joint == j.name:
+            raise r.fail(f"joint '{j.name}'", "mimics itself")
+    if not robot_links:
+        return
+    roots = [link.name for link in robot_links if link.name not in parent_of]
+    if len(roots) > 1:
+        raise r.fail("robot", f"has {len(roots)} root links ({', '.join(roots[:5])}); a URDF needs exactly one")
+    child_of = {j.child: j.parent for j in joints}
+    if not roots:
+        # Every link has a parent: walk up from any link until we loop.
+        start = robot_links[0].name
+        seen = [start]
+        while child_of[seen[-1]] not in seen:
+            seen.append(child_of[seen[-1]])
+        cycle = seen[seen.index(child_of[seen[-1]]) :]
+        raise r.fail("robot", f"joints form a cycle through links {' -> '.join(cycle)}")
+    # One root, each link one parent: any link not reachable from the root is on a cycle.
+    reachable = {roots[0]}
+    frontier = [roots[0]]
+    children: dict[str, list[str]] = {}
+    for j in joints:
+        children.setdefault(j.parent, []).append(j.child)
+    while frontier:
+        for c in children.get(frontier.pop(), []):
+            if c not in reachable:
+                reachable.add(c)
+                frontier.append(c)
+    lost = [link.name for link in robot_links if link.name not in reachable]
+    if lost:
+        raise r.fail("robot", f"joints form a cycle through links {', '.join(lost[:6])}")
+
+
+def _drop_dangling_mimics(joints: list[Joint]) -> tuple[list[Joint], list[Note]]:
+    """A mimic of a joint that does not exist is dropped with a warning.
+
+    Real descriptions contain this (a renamed leader); the follower then moves
+    on its own, which is what robot_state_publisher and pinocchio do too.
+    """
+    names = {j.name for j in joints}
+    out, notes = [], []
+    for j in joints:
+        if j.mimic is not None and j.mimic.joint not in names:
+            notes.append(Note("warning", f"joint '{j.name}'", f"mimics joint '{j.mimic.joint}', which does not exist; mimic ignored"))
+            j = replace(j, mimic=None)
+        out.append(j)
+    return out, notes
+
+
+def run(doc: UrdfDocument) -> Model:
+    try:
+        root = etree.fromstring(doc.xml, parser=etree.XMLParser(remove_comments=True))
+    except etree.XMLSyntaxError as exc:
+        line = exc.position[0] if exc.position else "?"
+        raise InputError(f"malformed XML at line {line}: {exc.msg}", file=doc.source) from None
+    if root.tag != "robot":
+        raise URDFError(f"root element is <{root.tag}>, expected <robot>", file=doc.source)
+    r = _Reader(doc.source, doc.resolver)
+    named: dict[str, Material] = {}
+    for mel in root.findall("material"):
+        mat = r.material(mel, f"material '{mel.get('name')}'", named)
+        named.setdefault(mat.name, mat)
+    links = [_link(el, r, named) for el in root.findall("link")]
+    joints = [_joint(el, r) for el in root.findall("joint")]
+    _check_tree(links, joints, r)
+    joints, notes = _drop_dangling_mimics(joints)
+    if not links:
+        notes.append(Note("warning", "robot", "has no links; the model is empty"))
+    extensions = tuple(
+        Extension(tag=el.tag, xml=etree.tostring(el, encoding="unicode")) for el in root if el.tag in EXTENSION_TAGS
+    )
+    robot = Robot(
+        name=root.get("name") or doc.source.name.split(".")[0],
+        source=doc.source,
+        links=tuple(links),
+        joints=tuple(joints),
+        materials=tuple(named.values()),
+        extensions=extensions,
+    )
+    return Model(robot=robot, notes=tuple(notes))

@@ -1,0 +1,76 @@
+"""What a conversion did: returned by :func:`urdf2mjcf.convert`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .ir import Model, Note
+
+
+@dataclass(frozen=True)
+class Report:
+    source: Path
+    output: Path | None
+    """The MJCF file written (None for in-memory compilation)."""
+    robot: str
+    links: int
+    joints: int
+    bodies: int
+    geoms: int
+    meshes: int
+    files: tuple[Path, ...]
+    """Every file written, assets included."""
+    notes: tuple[Note, ...]
+    model: Model | None = field(default=None, repr=False, compare=False)
+    """The final intermediate representation (inertials, geoms, assets per link)."""
+
+    def of_kind(self, kind: str) -> tuple[Note, ...]:
+        return tuple(n for n in self.notes if n.kind == kind)
+
+    @property
+    def warnings(self) -> tuple[Note, ...]:
+        return self.of_kind("warning")
+
+    @property
+    def repaired(self) -> tuple[Note, ...]:
+        return self.of_kind("repaired")
+
+    @property
+    def estimated(self) -> tuple[Note, ...]:
+        return self.of_kind("estimated")
+
+    @property
+    def decomposed(self) -> tuple[Note, ...]:
+        """Decompositions computed by CoACD in this run (cache misses)."""
+        return self.of_kind("decomposed")
+
+    @property
+    def cached(self) -> tuple[Note, ...]:
+        """Decompositions taken from the disk cache."""
+        return self.of_kind("cached")
+
+    def to_dict(self) -> dict:
+        return {
+            "source": str(self.source),
+            "output": str(self.output) if self.output else None,
+            "robot": self.robot,
+            "links": self.links,
+            "joints": self.joints,
+            "bodies": self.bodies,
+            "geoms": self.geoms,
+            "meshes": self.meshes,
+            "files": [str(f) for f in self.files],
+            "notes": [{"kind": n.kind, "element": n.element, "message": n.message} for n in self.notes],
+        }
+
+    def summary(self) -> str:
+        lines = [
+            f"{self.robot}: {self.links} links, {self.joints} joints -> {self.bodies} bodies, "
+            f"{self.geoms} geoms, {self.meshes} meshes"
+        ]
+        counts = {k: len(self.of_kind(k)) for k in ("repaired", "estimated", "decomposed", "cached", "decimated", "warning")}
+        extra = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
+        if extra:
+            lines.append(f"  {extra}")
+        return "\n".join(lines)
