@@ -11,7 +11,6 @@ import numpy as np
 from lxml import etree
 
 from urdf2mjcf.ir import Model
-from urdf2mjcf.transforms import quat_to_matrix
 
 
 def example_robot_data_share() -> Path:
@@ -32,7 +31,9 @@ def patched_urdf(source: Path, model: Model, dest: Path) -> Path:
     while links whose inertial we kept remain exactly the user's.
     """
     tree = etree.parse(str(source))
-    changed = {name: i for name, i in model.inertials.items() if i is not None and i.source != "urdf"}
+    changed = {
+        name: i for name, i in model.inertials.items() if i is not None and i.source != "urdf"
+    }
     dropped = {name for name, i in model.inertials.items() if i is None}
     for link in tree.getroot().findall("link"):
         name = link.get("name")
@@ -60,7 +61,13 @@ class Comparison:
     dofs: int
 
 
-def compare_with_pinocchio(urdf: Path, mjcf: Path, mimics: dict[str, tuple[str, float, float]], samples: int = 5, seed: int = 0) -> Comparison:
+def compare_with_pinocchio(
+    urdf: Path,
+    mjcf: Path,
+    mimics: dict[str, tuple[str, float, float]],
+    samples: int = 5,
+    seed: int = 0,
+) -> Comparison:
     """World pose of every link frame and joint gravity torques at random configurations."""
     import pinocchio as pin
 
@@ -72,8 +79,10 @@ def compare_with_pinocchio(urdf: Path, mjcf: Path, mimics: dict[str, tuple[str, 
 
     mj_joints = [mujoco.mj_id2name(mm, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(mm.njnt)]
     pin_joints = {pm.names[i]: i for i in range(1, pm.njoints)}
-    assert set(mj_joints) == set(pin_joints), (set(mj_joints) ^ set(pin_joints))
-    links = [pm.frames[f].name for f in range(pm.nframes) if pm.frames[f].type == pin.FrameType.BODY]
+    assert set(mj_joints) == set(pin_joints), set(mj_joints) ^ set(pin_joints)
+    links = [
+        pm.frames[f].name for f in range(pm.nframes) if pm.frames[f].type == pin.FrameType.BODY
+    ]
 
     worst = [0.0, 0.0, 0.0]
     for _ in range(samples):
@@ -99,7 +108,9 @@ def compare_with_pinocchio(urdf: Path, mjcf: Path, mimics: dict[str, tuple[str, 
             placement = pd.oMf[pm.getFrameId(link, pin.FrameType.BODY)]
             body = mm.body(link)
             worst[0] = max(worst[0], float(np.abs(md.xpos[body.id] - placement.translation).max()))
-            worst[1] = max(worst[1], float(np.abs(md.xmat[body.id].reshape(3, 3) - placement.rotation).max()))
+            worst[1] = max(
+                worst[1], float(np.abs(md.xmat[body.id].reshape(3, 3) - placement.rotation).max())
+            )
         g_pin = pin.computeGeneralizedGravity(pm, pd, q)
         scale = max(float(np.abs(g_pin).max()), 1e-9)
         for name in mj_joints:

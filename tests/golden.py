@@ -28,7 +28,9 @@ def _canon_value(value: str) -> str:
 
 
 def canonical(xml: bytes) -> str:
-    root = etree.fromstring(xml, parser=etree.XMLParser(remove_blank_text=True, remove_comments=True))
+    root = etree.fromstring(
+        xml, parser=etree.XMLParser(remove_blank_text=True, remove_comments=True)
+    )
     for el in root.iter():
         for key, value in el.attrib.items():
             el.set(key, _canon_value(value))

@@ -48,7 +48,11 @@ def test_mimic_follower_tracks_leader_with_multiplier_and_offset(tmp_path):
 
 def test_bodies_estimated_from_density_have_analytic_mass_and_inertia(tmp_path):
     out, report = _convert("estimated", tmp_path)
-    assert {n.element for n in report.estimated} == {"link 'box_link'", "link 'cylinder_link'", "link 'sphere_link'"}
+    assert {n.element for n in report.estimated} == {
+        "link 'box_link'",
+        "link 'cylinder_link'",
+        "link 'sphere_link'",
+    }
     m = mujoco.MjModel.from_xml_path(str(out))
     rho = 1000.0
 
@@ -92,8 +96,16 @@ def test_density_option_scales_estimated_mass(tmp_path):
 def test_converting_twice_gives_byte_identical_output(case, tmp_path):
     _, r1 = _convert(case, tmp_path / "a")
     _, r2 = _convert(case, tmp_path / "b")
-    files1 = {p.relative_to(tmp_path / "a"): p.read_bytes() for p in (tmp_path / "a").rglob("*") if p.is_file()}
-    files2 = {p.relative_to(tmp_path / "b"): p.read_bytes() for p in (tmp_path / "b").rglob("*") if p.is_file()}
+    files1 = {
+        p.relative_to(tmp_path / "a"): p.read_bytes()
+        for p in (tmp_path / "a").rglob("*")
+        if p.is_file()
+    }
+    files2 = {
+        p.relative_to(tmp_path / "b"): p.read_bytes()
+        for p in (tmp_path / "b").rglob("*")
+        if p.is_file()
+    }
     assert files1 == files2
 
 
@@ -112,7 +124,11 @@ def test_nonconvex_mesh_becomes_several_convex_collision_geoms(tmp_path):
     bracket = m.body("bracket").id
     collision = [g for g in range(m.ngeom) if m.geom_bodyid[g] == bracket and m.geom_group[g] == 3]
     assert len(collision) >= 2
-    paddle = [g for g in range(m.ngeom) if m.geom_bodyid[g] == m.body("paddle").id and m.geom_group[g] == 3]
+    paddle = [
+        g
+        for g in range(m.ngeom)
+        if m.geom_bodyid[g] == m.body("paddle").id and m.geom_group[g] == 3
+    ]
     assert len(paddle) == 1, "a box mesh is near-convex: one hull"
 
 
@@ -125,11 +141,17 @@ def test_every_joint_type_maps_to_mujoco_joints(tmp_path):
     assert m.dof_damping[m.joint("hinge").dofadr[0]] == 0.7
     assert m.dof_frictionloss[m.joint("hinge").dofadr[0]] == 0.2
     np.testing.assert_allclose(m.jnt_actfrcrange[m.joint("hinge").id], [-30, 30])
-    assert m.jnt_type[m.joint("spin").id] == jt.mjJNT_HINGE and not m.jnt_limited[m.joint("spin").id]
+    assert (
+        m.jnt_type[m.joint("spin").id] == jt.mjJNT_HINGE and not m.jnt_limited[m.joint("spin").id]
+    )
     assert m.jnt_type[m.joint("slider").id] == jt.mjJNT_SLIDE
     assert [m.jnt_type[m.joint(f"float_{s}").id] for s in "xyz"] == [jt.mjJNT_SLIDE] * 3
     assert m.jnt_type[m.joint("float_rot").id] == jt.mjJNT_BALL
-    assert [m.jnt_type[m.joint(f"table_{s}").id] for s in ("x", "y", "rot")] == [jt.mjJNT_SLIDE, jt.mjJNT_SLIDE, jt.mjJNT_HINGE]
+    assert [m.jnt_type[m.joint(f"table_{s}").id] for s in ("x", "y", "rot")] == [
+        jt.mjJNT_SLIDE,
+        jt.mjJNT_SLIDE,
+        jt.mjJNT_HINGE,
+    ]
     assert m.body("tool").id > 0, "fixed links are kept as bodies"
     assert m.nkey == 1 and m.key(0).name == "home"
 
@@ -172,8 +194,10 @@ def test_dae_material_becomes_a_mujoco_material(tmp_path):
     visual = [g for g in range(m.ngeom) if m.geom_bodyid[g] == base and m.geom_group[g] == 2]
     mesh_geoms = [g for g in visual if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
     assert len(mesh_geoms) >= 1
-    colours = {tuple(np.round(m.mat_rgba[m.geom_matid[g]], 3)) for g in mesh_geoms if m.geom_matid[g] >= 0}
+    colours = {
+        tuple(np.round(m.mat_rgba[m.geom_matid[g]], 3)) for g in mesh_geoms if m.geom_matid[g] >= 0
+    }
     assert colours, "mesh parts carry their Collada materials"
     assert all(c[:3] != (0.5, 0.5, 0.5) for c in colours)
     sphere = [g for g in visual if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE][0]
-    np.testing.assert_allclose(m.geom_rgba[sphere], [0.1, 0.8, 0.2, 1])
+    np.testing.assert_allclose(m.mat_rgba[m.geom_matid[sphere]], [0.1, 0.8, 0.2, 1], rtol=1e-6)

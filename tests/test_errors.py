@@ -24,7 +24,7 @@ def chain(*names: str) -> str:
     joints = "".join(
         f'<joint name="j{i}" type="revolute"><parent link="{a}"/><child link="{b}"/><axis xyz="0 0 1"/>'
         f'<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
-        for i, (a, b) in enumerate(zip(names, names[1:]))
+        for i, (a, b) in enumerate(zip(names, names[1:], strict=False))
     )
     return links + joints
 
@@ -37,25 +37,62 @@ def mesh_link(filename: str, where: str = "collision") -> str:
 
 
 CASES = {
-    "malformed_xml": ("robot.urdf", '<robot name="x"><link name="a"></robot>', "line", errors.InputError),
-    "missing_mesh": ("robot.urdf", robot(mesh_link("meshes/nowhere.stl")), "link 'base'", errors.MeshError),
+    "malformed_xml": (
+        "robot.urdf",
+        '<robot name="x"><link name="a"></robot>',
+        "line",
+        errors.InputError,
+    ),
+    "missing_mesh": (
+        "robot.urdf",
+        robot(mesh_link("meshes/nowhere.stl")),
+        "link 'base'",
+        errors.MeshError,
+    ),
     "lfs_pointer_mesh": ("robot.urdf", robot(mesh_link("lfs.stl")), "LFS", errors.MeshError),
-    "unknown_package": ("robot.urdf", robot(mesh_link("package://no_such_pkg/meshes/a.stl")), "no_such_pkg", errors.PackageNotFoundError),
-    "two_roots": ("robot.urdf", robot(LINK.format(n="a") + LINK.format(n="b")), "2 root links", errors.URDFError),
+    "unknown_package": (
+        "robot.urdf",
+        robot(mesh_link("package://no_such_pkg/meshes/a.stl")),
+        "no_such_pkg",
+        errors.PackageNotFoundError,
+    ),
+    "two_roots": (
+        "robot.urdf",
+        robot(LINK.format(n="a") + LINK.format(n="b")),
+        "2 root links",
+        errors.URDFError,
+    ),
     "joint_cycle": (
         "robot.urdf",
-        robot(chain("a", "b", "c") + '<joint name="back" type="fixed"><parent link="c"/><child link="a"/></joint>'),
+        robot(
+            chain("a", "b", "c")
+            + '<joint name="back" type="fixed"><parent link="c"/><child link="a"/></joint>'
+        ),
         "cycle",
         errors.URDFError,
     ),
-    "duplicate_link": ("robot.urdf", robot(LINK.format(n="a") + LINK.format(n="a")), "link 'a'", errors.URDFError),
+    "duplicate_link": (
+        "robot.urdf",
+        robot(LINK.format(n="a") + LINK.format(n="a")),
+        "link 'a'",
+        errors.URDFError,
+    ),
     "unknown_joint_type": (
         "robot.urdf",
-        robot(LINK.format(n="a") + LINK.format(n="b") + '<joint name="s" type="screw"><parent link="a"/><child link="b"/></joint>'),
+        robot(
+            LINK.format(n="a")
+            + LINK.format(n="b")
+            + '<joint name="s" type="screw"><parent link="a"/><child link="b"/></joint>'
+        ),
         "joint 's'",
         errors.URDFError,
     ),
-    "negative_mass": ("robot.urdf", robot(LINK.format(n="a").replace('value="1"', 'value="-2"')), "link 'a'", errors.InertiaError),
+    "negative_mass": (
+        "robot.urdf",
+        robot(LINK.format(n="a").replace('value="1"', 'value="-2"')),
+        "link 'a'",
+        errors.InertiaError,
+    ),
     "xacro_error": (
         "robot.urdf.xacro",
         '<robot name="x" xmlns:xacro="http://www.ros.org/wiki/xacro"><link name="${undefined_property * 2}"/></robot>',
@@ -112,10 +149,18 @@ def test_existing_output_is_not_overwritten_without_flag(tmp_path, data_dir):
     src.write_text(robot(LINK.format(n="a")))
     out = tmp_path / "robot.xml"
     out.write_text("keep me")
-    proc = subprocess.run([sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out)], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out)],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and "--overwrite" in proc.stderr
     assert out.read_text() == "keep me"
-    proc = subprocess.run([sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out), "--overwrite"], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out), "--overwrite"],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "<mujoco" in out.read_text()
 
@@ -123,6 +168,18 @@ def test_existing_output_is_not_overwritten_without_flag(tmp_path, data_dir):
 def test_bad_xacro_argument_syntax_is_a_one_line_usage_error(tmp_path):
     src = tmp_path / "r.urdf"
     src.write_text(robot(LINK.format(n="a")))
-    proc = subprocess.run([sys.executable, "-m", "urdf2mjcf", str(src), "use_gripper=true", "-o", str(tmp_path / "o.xml")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "urdf2mjcf",
+            str(src),
+            "use_gripper=true",
+            "-o",
+            str(tmp_path / "o.xml"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     assert proc.stderr.startswith("error: ") and len(proc.stderr.strip().splitlines()) == 1

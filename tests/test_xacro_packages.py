@@ -27,7 +27,9 @@ def _package(root: Path, folder: str, name: str | None = None) -> Path:
     pkg = root / folder
     (pkg / "meshes").mkdir(parents=True)
     if name:
-        (pkg / "package.xml").write_text(f"<package format='3'><name>{name}</name><version>1.0.0</version></package>")
+        (pkg / "package.xml").write_text(
+            f"<package format='3'><name>{name}</name><version>1.0.0</version></package>"
+        )
     _stl(pkg / "meshes" / "part.stl")
     return pkg
 
@@ -69,7 +71,10 @@ def workspace(tmp_path: Path) -> Path:
 
 def test_xacro_arguments_select_components(workspace):
     share = workspace / "ws" / "install" / "share"
-    for args, expect in (({}, {"base"}), ({"use_gripper": "true", "finger_length": "0.08"}, {"base", "finger"})):
+    for args, expect in (
+        ({}, {"base"}),
+        ({"use_gripper": "true", "finger_length": "0.08"}, {"base", "finger"}),
+    ):
         cfg = xacro.XacroConfig(args=args, package_paths=(share,), use_environment=False)
         model = parse.run(xacro.run(workspace / "robot.urdf.xacro", cfg))
         assert {link.name for link in model.robot.links} == expect
@@ -81,7 +86,15 @@ def test_cli_takes_ros_style_arguments_and_package_path(workspace):
     out = workspace / "out" / "robot.xml"
     result = CliRunner().invoke(
         urdf2mjcf_command,
-        [str(workspace / "robot.urdf.xacro"), "-o", str(out), "use_gripper:=true", "--package-path", str(workspace / "ws" / "install" / "share"), "--no-ros-env"],
+        [
+            str(workspace / "robot.urdf.xacro"),
+            "-o",
+            str(out),
+            "use_gripper:=true",
+            "--package-path",
+            str(workspace / "ws" / "install" / "share"),
+            "--no-ros-env",
+        ],
     )
     assert result.exit_code == 0, result.output
     text = out.read_text()
@@ -98,7 +111,9 @@ def test_unknown_package_in_find_is_a_package_error(workspace):
 
 def test_package_found_by_package_xml_name_when_folder_differs(tmp_path):
     _package(tmp_path / "src", "folder_name", "real_name")
-    r = PackageResolver(source=tmp_path / "x.urdf", package_paths=(tmp_path / "src",), use_environment=False)
+    r = PackageResolver(
+        source=tmp_path / "x.urdf", package_paths=(tmp_path / "src",), use_environment=False
+    )
     assert r.find("real_name") == (tmp_path / "src" / "folder_name").resolve()
     assert r.find("folder_name") == (tmp_path / "src" / "folder_name").resolve()
 
@@ -106,7 +121,12 @@ def test_package_found_by_package_xml_name_when_folder_differs(tmp_path):
 def test_explicit_package_beats_search_path(tmp_path):
     a = _package(tmp_path / "a", "pkg", "pkg")
     b = _package(tmp_path / "b", "pkg", "pkg")
-    r = PackageResolver(source=tmp_path / "x.urdf", packages={"pkg": b}, package_paths=(tmp_path / "a",), use_environment=False)
+    r = PackageResolver(
+        source=tmp_path / "x.urdf",
+        packages={"pkg": b},
+        package_paths=(tmp_path / "a",),
+        use_environment=False,
+    )
     assert r.find("pkg") == b.resolve() != a.resolve()
 
 
@@ -130,7 +150,9 @@ def test_walking_up_from_source_finds_enclosing_package(tmp_path):
     r = PackageResolver(source=pkg / "urdf" / "robot.urdf", use_environment=False)
     assert r.find("my_robot_description") == pkg.resolve()
     r2 = PackageResolver(source=vendored / "urdf" / "robot.urdf", use_environment=False)
-    assert r2.find("other_description") == vendored.resolve(), "folder name counts without package.xml"
+    assert r2.find("other_description") == vendored.resolve(), (
+        "folder name counts without package.xml"
+    )
 
 
 @pytest.mark.parametrize(

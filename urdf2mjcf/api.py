@@ -69,8 +69,12 @@ def make_options(
             workers=workers,
             progress=progress,
         ),
-        inertia=inertia.InertiaConfig(density=density, link_density=dict(link_density or {})),
-        emit=emit.EmitConfig(fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name),
+        inertia=inertia.InertiaConfig(
+            density=density, link_density=dict(link_density or {}), free_root=floating_base
+        ),
+        emit=emit.EmitConfig(
+            fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name
+        ),
         validate=validate.ValidateConfig(enabled=validate_model),
         scene=scene,
         overwrite=overwrite,
@@ -88,7 +92,9 @@ def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.Emit
     return replace(model, notes=model.notes + result.notes), result
 
 
-def convert(source: str | Path, output: str | Path, options: ConvertOptions | None = None, **kwargs) -> Report:
+def convert(
+    source: str | Path, output: str | Path, options: ConvertOptions | None = None, **kwargs
+) -> Report:
     """Convert a URDF or xacro file into ``output`` (an ``.xml`` path).
 
     Writes ``output``, its meshes and textures under ``assets/`` beside it and,
@@ -104,7 +110,10 @@ def convert(source: str | Path, output: str | Path, options: ConvertOptions | No
     source, output = Path(source), Path(output)
     scene_name = "scene.xml"
     if options.scene and output.name == scene_name:
-        raise OutputError("output would be overwritten by scene.xml; choose another name or --no-scene", file=output)
+        raise OutputError(
+            "output would be overwritten by scene.xml; choose another name or --no-scene",
+            file=output,
+        )
     out.check_target(output, options.overwrite, (scene_name,) if options.scene else ())
 
     model, result = build(source, options)
@@ -129,7 +138,8 @@ def convert(source: str | Path, output: str | Path, options: ConvertOptions | No
         links=len(robot.links),
         joints=len(robot.joints),
         bodies=validated[0].nbody - 1 if validated and validated[0] else len(robot.links),
-        geoms=sum(len(v) for v in model.visual_geoms.values()) + sum(len(v) for v in model.collision_geoms.values()),
+        geoms=sum(len(v) for v in model.visual_geoms.values())
+        + sum(len(v) for v in model.collision_geoms.values()),
         meshes=len(model.mesh_assets),
         files=tuple(written),
         notes=model.notes,

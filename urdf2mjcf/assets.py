@@ -61,7 +61,9 @@ def mesh_asset(stem: str, mesh: MeshData) -> MeshAsset:
     return MeshAsset(name=name, file=f"{name}.{ext}", data=data)
 
 
-def merge_assets(existing: tuple[MeshAsset, ...], new: list[MeshAsset]) -> tuple[tuple[MeshAsset, ...], dict[str, str]]:
+def merge_assets(
+    existing: tuple[MeshAsset, ...], new: list[MeshAsset]
+) -> tuple[tuple[MeshAsset, ...], dict[str, str]]:
     """Add ``new`` to ``existing``, storing identical content once.
 
     Returns the combined assets and a map from each new asset's name to the
@@ -76,7 +78,9 @@ def merge_assets(existing: tuple[MeshAsset, ...], new: list[MeshAsset]) -> tuple
         if key in by_data:
             renamed[asset.name] = by_data[key]
             continue
-        if asset.name in names:  # same stem and hash prefix but different bytes: impossible in practice
+        if (
+            asset.name in names
+        ):  # same stem and hash prefix but different bytes: impossible in practice
             raise RuntimeError(f"asset name collision: {asset.name}")
         by_data[key] = asset.name
         names.add(asset.name)

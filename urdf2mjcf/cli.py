@@ -13,8 +13,12 @@ from .errors import ConversionError
 
 
 def _configure_logging(verbose: int, quiet: bool) -> None:
-    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    level = (
+        logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    )
+    logging.basicConfig(
+        level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
+    )
 
 
 class _Progress:
@@ -28,7 +32,9 @@ class _Progress:
         if not self.enabled:
             return
         if self.bar is None:
-            self.bar = click.progressbar(length=total, label="decomposing collision meshes", file=sys.stderr)
+            self.bar = click.progressbar(
+                length=total, label="decomposing collision meshes", file=sys.stderr
+            )
             self.bar.__enter__()
         self.bar.update(done - self.bar.pos)
 
@@ -50,28 +56,112 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.command("urdf2mjcf", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
-@click.option("-o", "--output", required=True, type=click.Path(path_type=Path, dir_okay=False), help="MJCF file to write; meshes go to assets/ beside it.")
-@click.option("--package-path", multiple=True, type=click.Path(path_type=Path, file_okay=False), help="Folder whose sub-folders are ROS packages (repeatable).")
-@click.option("--package", "packages", multiple=True, metavar="NAME=DIR", help="Location of one package (repeatable).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="MJCF file to write; meshes go to assets/ beside it.",
+)
+@click.option(
+    "--package-path",
+    multiple=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder whose sub-folders are ROS packages (repeatable).",
+)
+@click.option(
+    "--package",
+    "packages",
+    multiple=True,
+    metavar="NAME=DIR",
+    help="Location of one package (repeatable).",
+)
 @click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
-@click.option("--density", type=float, default=1000.0, show_default=True, help="kg/m^3 for links with geometry but no inertial.")
-@click.option("--link-density", multiple=True, metavar="LINK=KG_PER_M3", help="Per-link density override (repeatable).")
-@click.option("--collision", "collision_source", type=click.Choice(["collision", "visual", "none"]), default="collision", show_default=True, help="Where collision geometry comes from.")
-@click.option("--fuse-fixed", is_flag=True, help="Merge links on fixed joints into their parent (each leaves a site).")
+@click.option(
+    "--density",
+    type=float,
+    default=1000.0,
+    show_default=True,
+    help="kg/m^3 for links with geometry but no inertial.",
+)
+@click.option(
+    "--link-density",
+    multiple=True,
+    metavar="LINK=KG_PER_M3",
+    help="Per-link density override (repeatable).",
+)
+@click.option(
+    "--collision",
+    "collision_source",
+    type=click.Choice(["collision", "visual", "none"]),
+    default="collision",
+    show_default=True,
+    help="Where collision geometry comes from.",
+)
+@click.option(
+    "--fuse-fixed",
+    is_flag=True,
+    help="Merge links on fixed joints into their parent (each leaves a site).",
+)
 @click.option("--floating-base", is_flag=True, help="Give the root link a free joint.")
 @click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
 @click.option("--no-scene", is_flag=True, help="Do not write scene.xml.")
 @click.option("--overwrite", is_flag=True, help="Replace existing output files.")
-@click.option("--strict", is_flag=True, help="A missing or unreadable visual mesh is an error, not a warning.")
-@click.option("--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo.")
-@click.option("--cache-dir", type=click.Path(path_type=Path, file_okay=False), help="Where convex decompositions are cached.")
+@click.option(
+    "--strict", is_flag=True, help="A missing or unreadable visual mesh is an error, not a warning."
+)
+@click.option(
+    "--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo."
+)
+@click.option(
+    "--cache-dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Where convex decompositions are cached.",
+)
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the decomposition cache.")
-@click.option("-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU).")
-@click.option("--max-faces", type=int, default=200_000, show_default=True, help="Decimate meshes above this face count.")
-@click.option("--report", "report_path", type=click.Path(path_type=Path, dir_okay=False), help="Also write the conversion report as JSON.")
+@click.option(
+    "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
+)
+@click.option(
+    "--max-faces",
+    type=int,
+    default=200_000,
+    show_default=True,
+    help="Decimate meshes above this face count.",
+)
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Also write the conversion report as JSON.",
+)
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors.")
-def urdf2mjcf_command(source, xacro_args, output, package_path, packages, no_ros_env, density, link_density, collision_source, fuse_fixed, floating_base, model_name, no_scene, overwrite, strict, no_validate, cache_dir, no_cache, jobs, max_faces, report_path, verbose, quiet):
+def urdf2mjcf_command(
+    source,
+    xacro_args,
+    output,
+    package_path,
+    packages,
+    no_ros_env,
+    density,
+    link_density,
+    collision_source,
+    fuse_fixed,
+    floating_base,
+    model_name,
+    no_scene,
+    overwrite,
+    strict,
+    no_validate,
+    cache_dir,
+    no_cache,
+    jobs,
+    max_faces,
+    report_path,
+    verbose,
+    quiet,
+):
     """Convert a URDF or xacro robot description SOURCE into MuJoCo MJCF.
 
     xacro arguments are given as NAME:=VALUE, exactly as with ROS.

@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, Union
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -42,9 +42,11 @@ class UrdfDocument:
     """The file the user gave (``.urdf``, ``.xacro`` or ``.urdf.xacro``)."""
     xml: bytes
     """The expanded URDF document."""
-    resolver: "PackageResolver"
+    resolver: PackageResolver
     expanded: bool = False
     """True when xacro ran on the source."""
+    warnings: tuple[str, ...] = ()
+    """Warnings xacro printed while expanding."""
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,7 @@ class MeshRef:
     scale: Vec3 = (1.0, 1.0, 1.0)
 
 
-Geometry = Union[Box, Cylinder, Sphere, Capsule, MeshRef]
+Geometry = Box | Cylinder | Sphere | Capsule | MeshRef
 
 
 @dataclass(frozen=True)
@@ -142,7 +144,14 @@ class Link:
 
 
 JointType = Literal["revolute", "continuous", "prismatic", "fixed", "floating", "planar"]
-JOINT_TYPES: tuple[str, ...] = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+JOINT_TYPES: tuple[str, ...] = (
+    "revolute",
+    "continuous",
+    "prismatic",
+    "fixed",
+    "floating",
+    "planar",
+)
 
 
 @dataclass(frozen=True)

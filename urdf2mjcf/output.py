@@ -24,7 +24,9 @@ def check_target(output: Path, overwrite: bool, extra: tuple[str, ...] = ()) -> 
             raise OutputError("already exists; pass --overwrite to replace it", file=path)
 
 
-def write_atomic(output: Path, files: Mapping[str, bytes], validate: Callable[[Path], None]) -> list[Path]:
+def write_atomic(
+    output: Path, files: Mapping[str, bytes], validate: Callable[[Path], None]
+) -> list[Path]:
     """Write ``files`` (paths relative to ``output``'s folder; ``output.name``
     among them), call ``validate`` on the staged ``output``, then move into place.
 

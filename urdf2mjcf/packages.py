@@ -110,7 +110,9 @@ class PackageResolver:
             rest = uri[len("package://") :].lstrip("/")
             name, _, relative = rest.partition("/")
             if not name:
-                raise PackageNotFoundError(f"malformed package URI '{uri}'", file=self.source, element=element)
+                raise PackageNotFoundError(
+                    f"malformed package URI '{uri}'", file=self.source, element=element
+                )
             return self.find(name, element=element) / unquote(relative)
         if uri.startswith("file://"):
             return Path(unquote(uri[len("file://") :]))

@@ -61,7 +61,9 @@ class Report:
             "geoms": self.geoms,
             "meshes": self.meshes,
             "files": [str(f) for f in self.files],
-            "notes": [{"kind": n.kind, "element": n.element, "message": n.message} for n in self.notes],
+            "notes": [
+                {"kind": n.kind, "element": n.element, "message": n.message} for n in self.notes
+            ],
         }
 
     def summary(self) -> str:
@@ -69,7 +71,10 @@ class Report:
             f"{self.robot}: {self.links} links, {self.joints} joints -> {self.bodies} bodies, "
             f"{self.geoms} geoms, {self.meshes} meshes"
         ]
-        counts = {k: len(self.of_kind(k)) for k in ("repaired", "estimated", "decomposed", "cached", "decimated", "warning")}
+        counts = {
+            k: len(self.of_kind(k))
+            for k in ("repaired", "estimated", "decomposed", "cached", "decimated", "warning")
+        }
         extra = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
         if extra:
             lines.append(f"  {extra}")

@@ -9,7 +9,6 @@ doubles round-trip; the output is a pure function of the model.
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,12 +20,8 @@ from ..fmt import fmt_float, fmt_vec
 from ..ir import BodyInertial, Geom, Joint, Model, Note, Quat, Vec3
 from ..transforms import (
     IDENTITY_QUAT,
-    inertia_matrix,
-    matrix_to_quat,
     mujoco_fullinertia,
-    pose_matrix,
     quat_from_rpy,
-    quat_to_matrix,
     split_transform,
     transform,
     vec3,
@@ -114,7 +109,9 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
     def make(link: str) -> _Body:
         body = _Body(link)
         body.inertial = model.inertials.get(link)
-        body.geoms = list(model.visual_geoms.get(link, ())) + list(model.collision_geoms.get(link, ()))
+        body.geoms = list(model.visual_geoms.get(link, ())) + list(
+            model.collision_geoms.get(link, ())
+        )
         for joint in robot.child_joints.get(link, ()):
             child = make(joint.child)
             child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
@@ -143,7 +140,9 @@ def _fuse(parent: _Body, child: _Body) -> None:
     for name, pos, quat in child.sites:
         parent.sites.append((name, *split_transform(t @ transform(pos, quat))))
     for grandchild in child.children:
-        grandchild.pos, grandchild.quat = split_transform(t @ transform(grandchild.pos, grandchild.quat))
+        grandchild.pos, grandchild.quat = split_transform(
+            t @ transform(grandchild.pos, grandchild.quat)
+        )
         parent.children.append(grandchild)
 
 
@@ -175,15 +174,25 @@ def _limits(joint: Joint, robot_source: Path, notes: list[Note]) -> tuple[float,
         return None
     lo, hi = joint.limit.lower, joint.limit.upper
     if lo is None and hi is None or lo == hi:
-        notes.append(Note("warning", f"joint '{joint.name}'", "limit has no range (lower == upper); joint left unlimited"))
+        notes.append(
+            Note(
+                "warning",
+                f"joint '{joint.name}'",
+                "limit has no range (lower == upper); joint left unlimited",
+            )
+        )
         return None
     lo, hi = lo or 0.0, hi or 0.0
     if lo > hi:
-        raise URDFError(f"limit lower {lo!r} > upper {hi!r}", file=robot_source, element=f"joint '{joint.name}'")
+        raise URDFError(
+            f"limit lower {lo!r} > upper {hi!r}", file=robot_source, element=f"joint '{joint.name}'"
+        )
     return lo, hi
 
 
-def _joint_elements(body_el: etree._Element, body: _Body, model: Model, at_world: bool, notes: list[Note]) -> list[tuple[str, str, float]]:
+def _joint_elements(
+    body_el: etree._Element, body: _Body, model: Model, at_world: bool, notes: list[Note]
+) -> list[tuple[str, str, float]]:
     """Write the joint(s) of ``body``; returns (name, kind, home value) per qpos block."""
     joint = body.joint
     if joint is None:
@@ -213,7 +222,13 @@ def _joint_elements(body_el: etree._Element, body: _Body, model: Model, at_world
         # Free joints are only allowed on top-level bodies: three slides and a ball.
         out = []
         for suffix, ax in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1))):
-            _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_{suffix}", type="slide", axis=ax, **common)
+            _set(
+                etree.SubElement(body_el, "joint"),
+                name=f"{joint.name}_{suffix}",
+                type="slide",
+                axis=ax,
+                **common,
+            )
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
         _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_rot", type="ball", **common)
         return out + [(f"{joint.name}_rot", "ball", 0.0)]
@@ -224,7 +239,13 @@ def _joint_elements(body_el: etree._Element, body: _Body, model: Model, at_world
         v = np.cross(n, u)
         out = []
         for suffix, ax, kind in (("x", u, "slide"), ("y", v, "slide"), ("rot", n, "hinge")):
-            _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_{suffix}", type=kind, axis=vec3(ax), **common)
+            _set(
+                etree.SubElement(body_el, "joint"),
+                name=f"{joint.name}_{suffix}",
+                type=kind,
+                axis=vec3(ax),
+                **common,
+            )
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
         return out
     raise AssertionError(joint.type)
@@ -252,12 +273,17 @@ def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
         _set(el, fullinertia=inertial.fullinertia)
 
 
-def _body_element(parent: etree._Element, body: _Body, model: Model, at_world: bool, qpos: list, notes: list[Note]) -> None:
+def _body_element(
+    parent: etree._Element, body: _Body, model: Model, at_world: bool, qpos: list, notes: list[Note]
+) -> None:
     el = etree.SubElement(parent, "body")
     _set(el, name=body.name, **_pose_attrs(body.pos, body.quat))
     if body.inertial is not None:
         _inertial_element(el, body.inertial)
-    qpos.extend((name, kind, home, body) for name, kind, home in _joint_elements(el, body, model, at_world, notes))
+    qpos.extend(
+        (name, kind, home, body)
+        for name, kind, home in _joint_elements(el, body, model, at_world, notes)
+    )
     for g in body.geoms:
         _geom_element(el, g)
     for name, pos, quat in body.sites:
@@ -271,7 +297,9 @@ def _home_qpos(entries: list, model: Model) -> tuple[float, ...]:
     values: dict[str, float] = {name: home for name, kind, home, _ in entries if kind == "scalar"}
     for joint in model.robot.joints:
         if joint.mimic is not None and joint.name in values and joint.mimic.joint in values:
-            values[joint.name] = joint.mimic.multiplier * values[joint.mimic.joint] + joint.mimic.offset
+            values[joint.name] = (
+                joint.mimic.multiplier * values[joint.mimic.joint] + joint.mimic.offset
+            )
     out: list[float] = []
     for name, kind, _home, body in entries:
         if kind == "free":
@@ -287,9 +315,16 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     robot = model.robot
     notes: list[Note] = []
     tree = _build_tree(model, cfg)
-    if cfg.floating_base and robot.root not in (None, WORLD) and tree.children and tree.children[0].joint is None:
+    if (
+        cfg.floating_base
+        and robot.root not in (None, WORLD)
+        and tree.children
+        and tree.children[0].joint is None
+    ):
         root = tree.children[0]
-        root.joint = Joint(name=f"{root.name}_freejoint", type="floating", parent=WORLD, child=root.name)
+        root.joint = Joint(
+            name=f"{root.name}_freejoint", type="floating", parent=WORLD, child=root.name
+        )
 
     mj = etree.Element("mujoco", model=cfg.model_name or robot.name)
     _set(
@@ -303,7 +338,13 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     _set(etree.SubElement(mj, "option"), integrator="implicitfast")
 
     default = etree.SubElement(mj, "default")
-    _set(etree.SubElement(etree.SubElement(default, "default"), "geom"), contype=0, conaffinity=0, group=2, density=0)
+    _set(
+        etree.SubElement(etree.SubElement(default, "default"), "geom"),
+        contype=0,
+        conaffinity=0,
+        group=2,
+        density=0,
+    )
     default[0].set("class", "visual")
     _set(etree.SubElement(etree.SubElement(default, "default"), "geom"), group=3)
     default[1].set("class", "collision")
@@ -315,9 +356,16 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
             _set(etree.SubElement(asset, "texture"), name=tex.name, type="2d", file=tex.file)
             files[f"{cfg.meshdir}/{tex.file}"] = tex.data
         for mat in model.materials:
-            _set(etree.SubElement(asset, "material"), name=mat.name, rgba=mat.rgba, texture=mat.texture)
+            _set(
+                etree.SubElement(asset, "material"),
+                name=mat.name,
+                rgba=mat.rgba,
+                texture=mat.texture,
+            )
         for mesh in model.mesh_assets:
-            _set(etree.SubElement(asset, "mesh"), name=mesh.name, file=mesh.file)
+            # Body inertia never comes from meshes here (inertiafromgeom="false"),
+            # and "shell" is the one mode MuJoCo accepts for flat and open meshes.
+            _set(etree.SubElement(asset, "mesh"), name=mesh.name, file=mesh.file, inertia="shell")
             files[f"{cfg.meshdir}/{mesh.file}"] = mesh.data
 
     worldbody = etree.SubElement(mj, "worldbody")
@@ -358,11 +406,25 @@ def scene_xml(robot_file: str, model_name: str) -> bytes:
     _set(etree.SubElement(mj, "include"), file=robot_file)
     _set(etree.SubElement(mj, "statistic"), center=(0, 0, 0.4), extent=1.5)
     visual = etree.SubElement(mj, "visual")
-    _set(etree.SubElement(visual, "headlight"), diffuse=(0.6, 0.6, 0.6), ambient=(0.3, 0.3, 0.3), specular=(0, 0, 0))
+    _set(
+        etree.SubElement(visual, "headlight"),
+        diffuse=(0.6, 0.6, 0.6),
+        ambient=(0.3, 0.3, 0.3),
+        specular=(0, 0, 0),
+    )
     _set(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
     _set(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
     asset = etree.SubElement(mj, "asset")
-    _set(etree.SubElement(asset, "texture"), name="scene_skybox", type="skybox", builtin="gradient", rgb1=(0.3, 0.5, 0.7), rgb2=(0, 0, 0), width=512, height=3072)
+    _set(
+        etree.SubElement(asset, "texture"),
+        name="scene_skybox",
+        type="skybox",
+        builtin="gradient",
+        rgb1=(0.3, 0.5, 0.7),
+        rgb2=(0, 0, 0),
+        width=512,
+        height=3072,
+    )
     _set(
         etree.SubElement(asset, "texture"),
         name="scene_groundplane",
@@ -375,9 +437,22 @@ def scene_xml(robot_file: str, model_name: str) -> bytes:
         width=300,
         height=300,
     )
-    _set(etree.SubElement(asset, "material"), name="scene_groundplane", texture="scene_groundplane", texuniform="true", texrepeat=(5, 5), reflectance=0.2)
+    _set(
+        etree.SubElement(asset, "material"),
+        name="scene_groundplane",
+        texture="scene_groundplane",
+        texuniform="true",
+        texrepeat=(5, 5),
+        reflectance=0.2,
+    )
     worldbody = etree.SubElement(mj, "worldbody")
     _set(etree.SubElement(worldbody, "light"), pos=(0, 0, 3.5), dir=(0, 0, -1), directional="true")
-    _set(etree.SubElement(worldbody, "geom"), name="floor", size=(0, 0, 0.05), type="plane", material="scene_groundplane")
+    _set(
+        etree.SubElement(worldbody, "geom"),
+        name="floor",
+        size=(0, 0, 0.05),
+        type="plane",
+        material="scene_groundplane",
+    )
     etree.indent(mj, space="  ")
     return etree.tostring(mj, encoding="utf-8") + b"\n"

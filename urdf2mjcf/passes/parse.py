@@ -54,7 +54,9 @@ class _Reader:
     def fail(self, element: str, message: str) -> URDFError:
         return URDFError(message, file=self.source, element=element)
 
-    def floats(self, el: etree._Element, attr: str, n: int, where: str, default=None) -> tuple[float, ...]:
+    def floats(
+        self, el: etree._Element, attr: str, n: int, where: str, default=None
+    ) -> tuple[float, ...]:
         text = el.get(attr)
         if text is None:
             if default is None:
@@ -65,12 +67,16 @@ class _Reader:
         except ValueError:
             raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not a list of numbers") from None
         if len(values) != n:
-            raise self.fail(where, f"<{el.tag} {attr}='{text}'> needs {n} numbers, got {len(values)}")
+            raise self.fail(
+                where, f"<{el.tag} {attr}='{text}'> needs {n} numbers, got {len(values)}"
+            )
         if not all(math.isfinite(v) for v in values):
             raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not finite")
         return values
 
-    def scalar(self, el: etree._Element, attr: str, where: str, default: float | None = None) -> float | None:
+    def scalar(
+        self, el: etree._Element, attr: str, where: str, default: float | None = None
+    ) -> float | None:
         if el.get(attr) is None:
             return default
         return self.floats(el, attr, 1, where)[0]
@@ -90,24 +96,34 @@ class _Reader:
         if kind == "box":
             return Box(size=self.floats(shape, "size", 3, where))  # type: ignore[arg-type]
         if kind == "cylinder":
-            return Cylinder(radius=self.scalar(shape, "radius", where), length=self.scalar(shape, "length", where))  # type: ignore[arg-type]
+            return Cylinder(
+                radius=self.scalar(shape, "radius", where),
+                length=self.scalar(shape, "length", where),
+            )  # type: ignore[arg-type]
         if kind == "sphere":
             return Sphere(radius=self.scalar(shape, "radius", where))  # type: ignore[arg-type]
         if kind == "capsule":
-            return Capsule(radius=self.scalar(shape, "radius", where), length=self.scalar(shape, "length", where))  # type: ignore[arg-type]
+            return Capsule(
+                radius=self.scalar(shape, "radius", where),
+                length=self.scalar(shape, "length", where),
+            )  # type: ignore[arg-type]
         if kind == "mesh":
             filename = shape.get("filename")
             if not filename:
                 raise self.fail(where, "<mesh> is missing attribute 'filename'")
             scale_text = shape.get("scale")
             if scale_text is not None and len(scale_text.split()) == 1:
-                s = self.floats(shape, "scale", 1, where)[0]  # a single number is used by some tools
+                s = self.floats(shape, "scale", 1, where)[
+                    0
+                ]  # a single number is used by some tools
                 scale = (s, s, s)
             else:
                 scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))
             path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
             return MeshRef(filename=filename, path=path, scale=tuple(v + 0.0 for v in scale))  # type: ignore[arg-type]
-        raise self.fail(where, f"unknown geometry <{kind}>; supported: box, cylinder, sphere, capsule, mesh")
+        raise self.fail(
+            where, f"unknown geometry <{kind}>; supported: box, cylinder, sphere, capsule, mesh"
+        )
 
     def material(self, el: etree._Element, where: str, named: dict[str, Material]) -> Material:
         name = el.get("name", "")
@@ -137,8 +153,14 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
         if tel is None:
             inertia = (0.0,) * 6
         else:
-            inertia = tuple(r.scalar(tel, k, where, 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
-        inertial = Inertial(origin=r.pose(iel.find("origin"), where), mass=r.scalar(mel, "value", where), inertia=inertia)  # type: ignore[arg-type]
+            inertia = tuple(
+                r.scalar(tel, k, where, 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+            )
+        inertial = Inertial(
+            origin=r.pose(iel.find("origin"), where),
+            mass=r.scalar(mel, "value", where),
+            inertia=inertia,
+        )  # type: ignore[arg-type]
     visuals = []
     for i, vel in enumerate(el.findall("visual")):
         vwhere = f"{where} visual {i}"
@@ -156,7 +178,11 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
     for i, cel in enumerate(el.findall("collision")):
         cwhere = f"{where} collision {i}"
         collisions.append(
-            Collision(origin=r.pose(cel.find("origin"), cwhere), geometry=r.geometry(cel.find("geometry"), cwhere), name=cel.get("name"))
+            Collision(
+                origin=r.pose(cel.find("origin"), cwhere),
+                geometry=r.geometry(cel.find("geometry"), cwhere),
+                name=cel.get("name"),
+            )
         )
     return Link(name=name, inertial=inertial, visuals=tuple(visuals), collisions=tuple(collisions))  # type: ignore[arg-type]
 
@@ -190,13 +216,20 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
     dynamics = None
     del_ = el.find("dynamics")
     if del_ is not None:
-        dynamics = Dynamics(damping=r.scalar(del_, "damping", where, 0.0), friction=r.scalar(del_, "friction", where, 0.0))  # type: ignore[arg-type]
+        dynamics = Dynamics(
+            damping=r.scalar(del_, "damping", where, 0.0),
+            friction=r.scalar(del_, "friction", where, 0.0),
+        )  # type: ignore[arg-type]
     mimic = None
     mel = el.find("mimic")
     if mel is not None:
         if not mel.get("joint"):
             raise r.fail(where, "<mimic> is missing attribute 'joint'")
-        mimic = Mimic(joint=mel.get("joint"), multiplier=r.scalar(mel, "multiplier", where, 1.0), offset=r.scalar(mel, "offset", where, 0.0))  # type: ignore[arg-type]
+        mimic = Mimic(
+            joint=mel.get("joint"),
+            multiplier=r.scalar(mel, "multiplier", where, 1.0),
+            offset=r.scalar(mel, "offset", where, 0.0),
+        )  # type: ignore[arg-type]
     return Joint(
         name=name,
         type=jtype,  # type: ignore[arg-type]
@@ -230,7 +263,11 @@ def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> Non
             if link not in names:
                 raise r.fail(f"joint '{j.name}'", f"{role} link '{link}' does not exist")
         if j.child in parent_of:
-            raise r.fail(f"joint '{j.name}'", f"link '{j.child}' already has parent joint '{parent_of[j.child]}'; a URDF must be a tree")
+            raise r.fail(
+                f"joint '{j.name}'",
+                f"link '{j.child}' already has parent joint '{parent_of[j.child]}'; "
+                "a URDF must be a tree",
+            )
         parent_of[j.child] = j.name
     for j in joints:
         if j.mimic is not None and j.mimic.joint == j.name:
@@ -239,7 +276,10 @@ def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> Non
         return
     roots = [link.name for link in robot_links if link.name not in parent_of]
     if len(roots) > 1:
-        raise r.fail("robot", f"has {len(roots)} root links ({', '.join(roots[:5])}); a URDF needs exactly one")
+        raise r.fail(
+            "robot",
+            f"has {len(roots)} root links ({', '.join(roots[:5])}); a URDF needs exactly one",
+        )
     child_of = {j.child: j.parent for j in joints}
     if not roots:
         # Every link has a parent: walk up from any link until we loop.
@@ -275,7 +315,13 @@ def _drop_dangling_mimics(joints: list[Joint]) -> tuple[list[Joint], list[Note]]
     out, notes = [], []
     for j in joints:
         if j.mimic is not None and j.mimic.joint not in names:
-            notes.append(Note("warning", f"joint '{j.name}'", f"mimics joint '{j.mimic.joint}', which does not exist; mimic ignored"))
+            notes.append(
+                Note(
+                    "warning",
+                    f"joint '{j.name}'",
+                    f"mimics joint '{j.mimic.joint}', which does not exist; mimic ignored",
+                )
+            )
             j = replace(j, mimic=None)
         out.append(j)
     return out, notes
@@ -298,10 +344,13 @@ def run(doc: UrdfDocument) -> Model:
     joints = [_joint(el, r) for el in root.findall("joint")]
     _check_tree(links, joints, r)
     joints, notes = _drop_dangling_mimics(joints)
+    notes = [Note("warning", "xacro", w) for w in doc.warnings] + notes
     if not links:
         notes.append(Note("warning", "robot", "has no links; the model is empty"))
     extensions = tuple(
-        Extension(tag=el.tag, xml=etree.tostring(el, encoding="unicode")) for el in root if el.tag in EXTENSION_TAGS
+        Extension(tag=el.tag, xml=etree.tostring(el, encoding="unicode"))
+        for el in root
+        if el.tag in EXTENSION_TAGS
     )
     robot = Robot(
         name=root.get("name") or doc.source.name.split(".")[0],

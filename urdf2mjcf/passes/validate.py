@@ -36,7 +36,9 @@ class ValidationResult:
     steps: int
 
 
-def run(xml_path: Path, cfg: ValidateConfig, *, report_as: Path | None = None) -> ValidationResult | None:
+def run(
+    xml_path: Path, cfg: ValidateConfig, *, report_as: Path | None = None
+) -> ValidationResult | None:
     """Compile ``xml_path`` (all includes and assets beside it) and simulate it.
 
     ``report_as`` is the file name used in error messages (the final output
@@ -74,6 +76,8 @@ def run(xml_path: Path, cfg: ValidateConfig, *, report_as: Path | None = None) -
     ]
     if warnings or raised:
         detail = "; ".join(warnings + raised)
-        raise ValidationError(f"MuJoCo warned while simulating {cfg.duration:g} s: {detail}", file=shown)
+        raise ValidationError(
+            f"MuJoCo warned while simulating {cfg.duration:g} s: {detail}", file=shown
+        )
     log.debug("validated %s: nbody=%d nq=%d", shown, m.nbody, m.nq)
     return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps)

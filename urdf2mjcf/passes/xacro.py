@@ -7,11 +7,12 @@ ROS installation is needed. Plain URDF files are read as they are.
 
 from __future__ import annotations
 
+import io
 import logging
 import threading
 import xml.parsers.expat
 from collections.abc import Mapping
-from contextlib import contextmanager
+from contextlib import contextmanager, redirect_stderr
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,7 +52,8 @@ def _needs_xacro(source: Path, data: bytes, args: Mapping[str, str]) -> bool:
         raise InputError(f"malformed XML at line {line}: {exc.msg}", file=source) from None
     # A .urdf that uses xacro elements is still xacro (people do name them so).
     return any(
-        isinstance(el.tag, str) and etree.QName(el).namespace in XACRO_NAMESPACES for el in root.iter()
+        isinstance(el.tag, str) and etree.QName(el).namespace in XACRO_NAMESPACES
+        for el in root.iter()
     )
 
 
@@ -73,10 +75,11 @@ def _patched_find(resolver: PackageResolver):
         sa._eval_dict["find"] = saved[1]
 
 
-def _expand(source: Path, cfg: XacroConfig, resolver: PackageResolver) -> bytes:
+def _expand(source: Path, cfg: XacroConfig, resolver: PackageResolver) -> tuple[bytes, list[str]]:
     import xacro
 
-    with _LOCK, _patched_find(resolver):
+    chatter = io.StringIO()  # xacro prints its warnings; they belong in the report
+    with _LOCK, _patched_find(resolver), redirect_stderr(chatter):
         try:
             doc = xacro.process_file(str(source), mappings=dict(cfg.args))
         except ConversionError:
@@ -95,7 +98,12 @@ def _expand(source: Path, cfg: XacroConfig, resolver: PackageResolver) -> bytes:
             raise XacroError(msg, file=where, element=element) from None
         finally:
             xacro.init_stacks(None)
-    return doc.toxml(encoding="utf-8")
+    warnings = [
+        line.strip()
+        for line in chatter.getvalue().splitlines()
+        if line.strip().lower().startswith("warning")
+    ]
+    return doc.toxml(encoding="utf-8"), warnings
 
 
 def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
@@ -111,5 +119,8 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
     data = source.read_bytes()
     if _needs_xacro(source, data, cfg.args):
         log.debug("expanding %s with xacro (args %s)", source, dict(cfg.args))
-        return UrdfDocument(source=source, xml=_expand(source, cfg, resolver), resolver=resolver, expanded=True)
+        xml, warnings = _expand(source, cfg, resolver)
+        return UrdfDocument(
+            source=source, xml=xml, resolver=resolver, expanded=True, warnings=tuple(warnings)
+        )
     return UrdfDocument(source=source, xml=data, resolver=resolver)

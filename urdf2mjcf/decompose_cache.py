@@ -1,0 +1,152 @@
+"""Disk cache of convex decompositions, so a second conversion decomposes nothing.
+
+One ``.npz`` file per decomposition, named by a key that hashes everything the
+result depends on: the mesh (its content hash and the exact arrays handed to
+CoACD), the CoACD parameters, the versions of coacd, trimesh and numpy, and
+:data:`CACHE_FORMAT`. Files are written to a temporary name and moved into
+place with ``os.replace``, so concurrent writers and readers only ever see
+whole files; an unreadable or inconsistent entry is treated as a miss.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import logging
+import os
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .ir import MeshData
+
+logger = logging.getLogger(__name__)
+
+CACHE_FORMAT = 1
+"""Bump when the stored layout or the processing around CoACD changes."""
+
+_SUBDIR = "coacd"
+
+
+def default_cache_dir() -> Path:
+    """``$URDF2MJCF_CACHE``, else ``$XDG_CACHE_HOME/urdf2mjcf``, else ``~/.cache/urdf2mjcf``."""
+    explicit = os.environ.get("URDF2MJCF_CACHE")
+    if explicit:
+        return Path(explicit).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
+    return base / "urdf2mjcf"
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    import trimesh
+
+    try:
+        coacd_version = version("coacd")
+    except PackageNotFoundError:  # pragma: no cover - coacd is a dependency
+        coacd_version = "unknown"
+    return {"coacd": coacd_version, "trimesh": trimesh.__version__, "numpy": np.__version__}
+
+
+def array_digest(vertices: np.ndarray, faces: np.ndarray) -> str:
+    """sha256 of the exact float64 vertices and int64 faces (shape included)."""
+    h = hashlib.sha256()
+    for a, dtype in ((vertices, "<f8"), (faces, "<i8")):
+        a = np.ascontiguousarray(a, dtype=dtype)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def cache_key(mesh_sha256: str, data_sha256: str, params: Mapping[str, object]) -> str:
+    """The file name stem of one decomposition: sha256 of everything it depends on."""
+    payload = {
+        "format": CACHE_FORMAT,
+        "mesh": mesh_sha256,
+        "data": data_sha256,
+        "params": dict(params),
+        "versions": _versions(),
+    }
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+
+
+class DecompositionCache:
+    """Convex parts stored under ``root/coacd/<key>.npz``."""
+
+    def __init__(self, root: Path):
+        self.dir = Path(root) / _SUBDIR
+
+    def path(self, key: str) -> Path:
+        return self.dir / f"{key}.npz"
+
+    def load(self, key: str) -> list[MeshData] | None:
+        """The stored parts, or None when absent, unreadable or inconsistent."""
+        path = self.path(key)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            logger.warning("cannot read cache entry %s: %s", path, exc)
+            return None
+        try:
+            return _decode(data, key)
+        except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            logger.warning("ignoring corrupt cache entry %s: %s", path, exc)
+            return None
+
+    def store(self, key: str, parts: list[MeshData]) -> None:
+        """Write atomically; a failure to write is logged, never raised."""
+        buf = io.BytesIO()
+        arrays: dict[str, np.ndarray] = {
+            "format": np.array([CACHE_FORMAT], dtype="<i8"),
+            "key": np.frombuffer(key.encode(), dtype=np.uint8),
+            "count": np.array([len(parts)], dtype="<i8"),
+        }
+        for i, part in enumerate(parts):
+            arrays[f"v{i}"] = np.ascontiguousarray(part.vertices, dtype="<f8")
+            arrays[f"f{i}"] = np.ascontiguousarray(part.faces, dtype="<i8")
+        np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub confuses **kwds with allow_pickle
+        tmp_name = None
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            fd, tmp_name = tempfile.mkstemp(dir=self.dir, prefix=f".{key[:16]}.", suffix=".tmp")
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(buf.getvalue())
+            os.replace(tmp_name, self.path(key))
+            tmp_name = None
+        except OSError as exc:
+            logger.warning("cannot write cache entry in %s: %s", self.dir, exc)
+        finally:
+            if tmp_name is not None:
+                try:
+                    os.unlink(tmp_name)
+                except OSError:
+                    pass
+
+
+def _decode(data: bytes, key: str) -> list[MeshData]:
+    with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+        if int(npz["format"][0]) != CACHE_FORMAT:
+            raise ValueError("other cache format")
+        if npz["key"].tobytes().decode() != key:
+            raise ValueError("entry stored under another key")
+        count = int(npz["count"][0])
+        if count < 1:
+            raise ValueError("no parts")
+        parts = []
+        for i in range(count):
+            v = np.array(npz[f"v{i}"], dtype=np.float64)
+            f = np.array(npz[f"f{i}"], dtype=np.int64)
+            if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+                raise ValueError(f"part {i} has bad shapes {v.shape} {f.shape}")
+            if not np.all(np.isfinite(v)) or f.min() < 0 or f.max() >= len(v):
+                raise ValueError(f"part {i} has invalid values")
+            parts.append(MeshData(vertices=v, faces=f))
+    return parts

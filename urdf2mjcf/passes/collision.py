@@ -1,0 +1,400 @@
+"""Collision pass: URDF collision elements -> MuJoCo collision geoms.
+
+Primitives stay primitives. A mesh whose convex hull fits it closely (hull gap
+at most :attr:`CollisionConfig.max_hull_gap`, see :mod:`urdf2mjcf.convexity`)
+becomes that hull; a clearly concave one is split by CoACD into convex parts,
+one geom each, all placed at the element's origin like the mesh itself. A flat
+mesh (no volume) becomes a thin box, which MuJoCo can collide with.
+
+Decompositions run in a thread pool (CoACD releases the GIL) and are kept in
+a disk cache (:mod:`urdf2mjcf.decompose_cache`); results are applied in
+document order whatever order they finish in, so the output does not depend
+on ``workers``.
+
+Determinism: CoACD 1.0.14 with a fixed ``seed`` returns bit-identical parts
+across runs, processes, concurrent threads and OpenMP thread counts
+(measured with 1, 2 and 4 threads on 20 corpus meshes).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from ..assets import merge_assets, mesh_asset, safe_stem
+from ..convexity import as_trimesh, convex_hull, flat_box, hull_fit
+from ..decompose_cache import DecompositionCache, array_digest, cache_key, default_cache_dir
+from ..errors import MeshError
+from ..geometry import primitive_geom
+from ..ir import Collision, Geom, LoadedMesh, MeshAsset, MeshData, MeshRef, Model, Note, Visual
+from ..transforms import pose_matrix, quat_from_rpy, split_transform, vec3
+
+logger = logging.getLogger(__name__)
+
+MeshKey = tuple[Path, tuple[float, float, float]]
+"""Key of ``Model.meshes``: (resolved path, scale)."""
+
+FLAT_THICKNESS = 1e-3
+"""Full thickness, metres, of the box that stands in for a flat mesh."""
+
+
+@dataclass(frozen=True)
+class CoacdParams:
+    """Keyword arguments of ``coacd.run_coacd``, passed on whole.
+
+    Chosen for speed on robot links. On 20 concave example-robot-data meshes,
+    threshold 0.1 with 50 MCTS iterations of depth 2, resolution 1000 and up
+    to 16 hulls took 9.5 s a mesh on average (CoACD's defaults take longer
+    still), most of it in merging hulls down to the cap and in cutting the
+    dense manifold remesh of open meshes. These settings take 0.1-4.5 s,
+    1.9 s on average, on one core, giving 2-12 parts.
+    """
+
+    threshold: float = 0.15
+    """Target concavity of each part (CoACD's normalised Hausdorff measure)."""
+    max_convex_hull: int = 12
+    """At most this many parts (CoACD merges down to it)."""
+    preprocess_mode: str = "auto"
+    """Remesh to a manifold only when the input is not one."""
+    preprocess_resolution: int = 20
+    """Voxel resolution of that remeshing."""
+    resolution: int = 300
+    """Samples for the concavity measure."""
+    mcts_nodes: int = 20
+    mcts_iterations: int = 20
+    mcts_max_depth: int = 1
+    seed: int = 0
+    """Fixed: the same mesh always gives the same parts."""
+
+
+Source = Literal["collision", "visual", "none"]
+
+
+@dataclass(frozen=True)
+class CollisionConfig:
+    source: Source = "collision"
+    """Which URDF elements give the collision geometry; ``none`` gives no collision geoms."""
+    max_hull_gap: float = 0.02
+    """Meshes whose hull gap (mean hull-to-mesh surface distance / bounding-box
+    diagonal, see :mod:`urdf2mjcf.convexity`) exceeds this are decomposed; the
+    rest become their convex hull. 0.02 sends 92 of the 374 distinct collision
+    meshes of example-robot-data to CoACD (brackets, U shapes, forks, frames,
+    L-shaped links) and keeps ordinary links as hulls; a U bracket with mesh /
+    hull volume 0.625 measures 0.023."""
+    coacd: CoacdParams = CoacdParams()
+    cache_dir: Path | None = None
+    """None: ``$URDF2MJCF_CACHE``, else ``$XDG_CACHE_HOME/urdf2mjcf``, else
+    ``~/.cache/urdf2mjcf``."""
+    use_cache: bool = True
+    workers: int = 0
+    """Decompositions run at once (threads); 0: one per available CPU; 1: one after another."""
+    progress: Callable[[int, int, str], None] | None = None
+    """Called with (done, total, label) each time a decomposition finishes."""
+
+
+# ---------------------------------------------------------------------------
+# Per-mesh plans
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What one distinct mesh turns into."""
+
+    kind: Literal["hull", "parts", "box", "none"]
+    label: str
+    """``mesh '<filename>'`` as first written in the URDF."""
+    stem: str
+    """Asset name stem: the mesh file's stem."""
+    pieces: tuple[MeshData, ...] = ()
+    """The hull (one) or the convex parts (several)."""
+    box: tuple[np.ndarray, np.ndarray] | None = None
+    """(4, 4) pose in the mesh frame and (3,) full sizes, for flat meshes."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Job:
+    """A mesh to decompose (not in the cache)."""
+
+    key: str
+    """Cache key."""
+    label: str
+    stem: str
+    name: str
+    """File name, for progress reports."""
+    gap: float
+    hull: MeshData
+    """Fallback when CoACD fails."""
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def run(model: Model, cfg: CollisionConfig) -> Model:
+    """Build ``collision_geoms`` for every link and add the hull and part meshes."""
+    links = model.robot.links
+    elements: dict[str, tuple[Collision | Visual, ...]] = {}
+    for link in links:
+        if cfg.source == "collision":
+            elements[link.name] = link.collisions
+        elif cfg.source == "visual":
+            elements[link.name] = link.visuals
+        else:
+            elements[link.name] = ()
+
+    notes: list[Note] = []
+    plans = _plan_meshes(model, cfg, elements, notes)
+
+    new_assets: list[MeshAsset] = []
+    geoms_by_link: dict[str, list[Geom]] = {}
+    for link in links:
+        geoms: list[Geom] = []
+        for el in elements[link.name]:
+            geometry = el.geometry
+            if not isinstance(geometry, MeshRef):
+                geoms.append(primitive_geom("collision", el.origin, geometry))
+                continue
+            plan = plans.get((geometry.path, geometry.scale))  # type: ignore[arg-type]
+            if plan is None:  # a visual mesh whose file was missing
+                continue
+            geoms.extend(_plan_geoms(plan, el, new_assets))
+        geoms_by_link[link.name] = geoms
+
+    mesh_assets, renamed = merge_assets(model.mesh_assets, new_assets)
+    collision_geoms: dict[str, tuple[Geom, ...]] = {}
+    for name, geoms in geoms_by_link.items():
+        named = []
+        for k, g in enumerate(geoms):
+            geom_name = f"{name}_collision" if len(geoms) == 1 else f"{name}_collision_{k}"
+            mesh = renamed[g.mesh] if g.mesh is not None else None
+            named.append(dataclasses.replace(g, name=geom_name, mesh=mesh))
+        collision_geoms[name] = tuple(named)
+
+    return dataclasses.replace(
+        model,
+        collision_geoms=collision_geoms,
+        mesh_assets=mesh_assets,
+        notes=model.notes + tuple(notes),
+    )
+
+
+def _plan_geoms(plan: _Plan, el: Collision | Visual, new_assets: list[MeshAsset]) -> list[Geom]:
+    if plan.kind == "none":
+        return []
+    if plan.kind == "box":
+        assert plan.box is not None
+        box_pose, sizes = plan.box
+        pos, quat = split_transform(pose_matrix(el.origin) @ box_pose)
+        return [
+            Geom(
+                role="collision",
+                type="box",
+                pos=pos,
+                quat=quat,
+                size=tuple(float(s) * 0.5 for s in sizes),
+            )
+        ]
+    pos, quat = vec3(el.origin.xyz), quat_from_rpy(el.origin.rpy)
+    out = []
+    for i, piece in enumerate(plan.pieces):
+        suffix = "hull" if plan.kind == "hull" else f"part{i}"
+        asset = mesh_asset(f"{plan.stem}_{suffix}", piece)
+        new_assets.append(asset)
+        out.append(Geom(role="collision", type="mesh", pos=pos, quat=quat, mesh=asset.name))
+    return out
+
+
+def _plan_meshes(
+    model: Model,
+    cfg: CollisionConfig,
+    elements: dict[str, tuple[Collision | Visual, ...]],
+    notes: list[Note],
+) -> dict[MeshKey, _Plan]:
+    """Decide hull / parts / box for each distinct mesh and produce its pieces.
+
+    Meshes with the same content (``LoadedMesh.sha256``) share one plan.
+    """
+    cache = DecompositionCache(cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
+    by_content: dict[str, _Plan | _Job] = {}
+    mesh_notes: dict[str, list[Note]] = {}  # content hash -> its notes
+    users: dict[str, list[MeshKey]] = {}  # content hash -> mesh keys using it
+    jobs: list[_Job] = []
+
+    for link_name, els in elements.items():
+        for el in els:
+            ref = el.geometry
+            if not isinstance(ref, MeshRef):
+                continue
+            key: MeshKey = (ref.path, ref.scale)  # type: ignore[assignment]
+            loaded = model.meshes.get(key) if ref.path is not None else None
+            if loaded is None:
+                if isinstance(el, Visual):
+                    continue  # the meshes pass already reported the missing file
+                raise MeshError(
+                    "collision mesh was not loaded",
+                    file=ref.path or ref.filename,
+                    element=f"link '{link_name}' collision mesh '{ref.filename}'",
+                )
+            if loaded.sha256 not in by_content:
+                mesh_notes[loaded.sha256] = []
+                outcome = _classify(loaded, ref, cfg, cache, mesh_notes[loaded.sha256])
+                by_content[loaded.sha256] = outcome
+                if isinstance(outcome, _Job):
+                    jobs.append(outcome)
+            users.setdefault(loaded.sha256, [])
+            if key not in users[loaded.sha256]:
+                users[loaded.sha256].append(key)
+
+    results = _run_jobs(jobs, cfg, cache)
+    plans: dict[MeshKey, _Plan] = {}
+    for sha, outcome in by_content.items():  # document order, whatever the completion order
+        if isinstance(outcome, _Job):
+            outcome = _job_plan(outcome, results.get(outcome.key), mesh_notes[sha])
+        notes.extend(mesh_notes[sha])
+        for key in users[sha]:
+            plans[key] = outcome
+    return plans
+
+
+def _job_plan(job: _Job, parts: list[MeshData] | None, notes: list[Note]) -> _Plan:
+    if parts is not None:
+        notes.append(
+            Note("decomposed", job.label, f"{len(parts)} convex parts (hull gap {job.gap:.3f})")
+        )
+        return _Plan("parts", job.label, job.stem, pieces=tuple(parts))
+    notes.append(Note("warning", job.label, "convex decomposition failed; using the convex hull"))
+    return _Plan("hull", job.label, job.stem, pieces=(job.hull,))
+
+
+def _classify(
+    loaded: LoadedMesh,
+    ref: MeshRef,
+    cfg: CollisionConfig,
+    cache: DecompositionCache | None,
+    notes: list[Note],
+) -> _Plan | _Job:
+    """A finished plan (hull, cached parts, box, nothing) or a job for CoACD."""
+    label = f"mesh '{ref.filename}'"
+    name = ref.filename.replace("\\", "/").rsplit("/", 1)[-1]
+    stem = safe_stem(Path(name).stem or "mesh")
+    mesh = as_trimesh(loaded.merged)
+    if len(mesh.faces) == 0:
+        notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
+        return _Plan("none", label, stem)
+    fit = hull_fit(mesh)
+    if fit.hull is None:
+        notes.append(
+            Note("warning", label, f"mesh is flat; using a {FLAT_THICKNESS * 1e3:g} mm thick box")
+        )
+        return _Plan("box", label, stem, box=flat_box(mesh.vertices, FLAT_THICKNESS))
+    if fit.gap <= cfg.max_hull_gap:
+        notes.append(Note("hull", label, f"convex hull (hull gap {fit.gap:.3f})"))
+        return _Plan("hull", label, stem, pieces=(fit.hull,))
+    vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    key = cache_key(loaded.sha256, array_digest(vertices, faces), asdict(cfg.coacd))
+    parts = cache.load(key) if cache is not None else None
+    if parts is not None:
+        notes.append(Note("cached", label, f"{len(parts)} convex parts from the cache"))
+        return _Plan("parts", label, stem, pieces=tuple(parts))
+    return _Job(key, label, stem, name, fit.gap, fit.hull, vertices, faces)
+
+
+# ---------------------------------------------------------------------------
+# Running CoACD
+# ---------------------------------------------------------------------------
+
+
+def _available_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def _run_jobs(
+    jobs: list[_Job], cfg: CollisionConfig, cache: DecompositionCache | None
+) -> dict[str, list[MeshData] | None]:
+    """Decompose every job; None for a job whose decomposition failed."""
+    results: dict[str, list[MeshData] | None] = {}
+    if not jobs:
+        return results
+    params = asdict(cfg.coacd)
+    total = len(jobs)
+    workers = cfg.workers if cfg.workers > 0 else _available_cpus()
+    workers = min(workers, total)
+    logger.info("decomposing %d meshes with CoACD (%d workers)", total, workers)
+    _quiet_coacd()
+
+    def finish(job: _Job, parts: list[MeshData] | None) -> None:
+        results[job.key] = parts
+        if parts is not None and cache is not None:
+            cache.store(job.key, parts)
+        if cfg.progress is not None:
+            cfg.progress(len(results), total, job.name)
+
+    if workers <= 1:
+        for job in jobs:
+            finish(job, _safe_decompose(job.vertices, job.faces, params, job.label))
+        return results
+
+    # Threads, not processes: CoACD releases the GIL while it works (2 threads
+    # halve the wall time on 2 cores), and threads need neither fork, which
+    # hangs after OpenMP has run, nor spawn, which re-imports the caller's script.
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="coacd")
+    try:
+        futures: dict[Future, int] = {
+            pool.submit(_safe_decompose, job.vertices, job.faces, params, job.label): i
+            for i, job in enumerate(jobs)
+        }
+        remaining = set(futures)
+        while remaining:
+            done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
+            for fut in sorted(done, key=futures.__getitem__):
+                finish(jobs[futures[fut]], fut.result())
+    except BaseException:  # Ctrl-C included: do not wait for the queued jobs
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
+    return results
+
+
+def _quiet_coacd() -> None:
+    try:
+        import coacd
+    except ImportError as exc:  # pragma: no cover - coacd is a dependency
+        raise MeshError(
+            "convex decomposition needs coacd: pip install coacd "
+            "(or use source='none' / a larger max_hull_gap)"
+        ) from exc
+    coacd.set_log_level("error")
+
+
+def _safe_decompose(
+    vertices: np.ndarray, faces: np.ndarray, params: dict, label: str
+) -> list[MeshData] | None:
+    try:
+        return decompose(vertices, faces, params)
+    except Exception as exc:  # CoACD raises assorted errors on broken input
+        logger.warning("CoACD failed on %s: %s", label, exc)
+        return None
+
+
+def decompose(vertices: np.ndarray, faces: np.ndarray, params: dict) -> list[MeshData] | None:
+    """CoACD parts, each replaced by its exact outward-facing hull; flat parts dropped."""
+    import coacd
+
+    raw = coacd.run_coacd(coacd.Mesh(vertices, faces), **params)
+    parts = []
+    for v, _f in raw:
+        hull = convex_hull(np.asarray(v, dtype=np.float64))
+        if hull is not None:
+            parts.append(hull)
+    return parts or None

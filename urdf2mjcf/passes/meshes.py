@@ -1,0 +1,513 @@
+"""Meshes pass: load every mesh file once and turn visuals into MuJoCo geoms.
+
+Fills ``Model.meshes`` (for visuals and collisions alike), the visual geoms
+and the mesh, texture and material assets they use.
+
+Colour precedence, as RViz does it: a part's own material from the mesh file
+(a DAE or OBJ diffuse colour or texture, or a PLY's vertex colours) wins; a
+part without one takes the URDF ``<material>`` (colour and texture); with
+neither the geom gets nothing and emit's default class gives the grey. Every
+colour becomes a :class:`MaterialAsset`; this pass never sets ``Geom.rgba``.
+
+Collada: ``<unit meter=...>`` of the document is applied and ``<up_axis>`` is
+ignored, which is what RViz (assimp, skipping the root node's up-axis
+rotation, then rescaling by the unit) and Gazebo show. trimesh applies the
+node transforms but only records the unit in metadata, so we scale here.
+
+OBJ texture coordinates are written as read (v up, as in the file): MuJoCo
+flips v itself when it loads an OBJ, so images appear the right way up.
+
+Flat or tiny meshes (a textured quad, a thin decal) are kept: MuJoCo 4.0
+rejects them ("mesh volume is too small") even on massless visual geoms
+unless the ``<mesh>`` asset has ``inertia="shell"``, which emit must write.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import io
+import logging
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import assets
+from ..errors import MeshError
+from ..geometry import primitive_geom
+from ..ir import (
+    RGBA,
+    Geom,
+    LoadedMesh,
+    Material,
+    MaterialAsset,
+    MeshAsset,
+    MeshData,
+    MeshPart,
+    MeshRef,
+    Model,
+    Note,
+    TextureAsset,
+    Vec3,
+    Visual,
+)
+from ..transforms import quat_from_rpy, vec3
+
+log = logging.getLogger(__name__)
+
+FORMATS = (".stl", ".obj", ".dae", ".ply")
+LFS_MAGIC = b"version https://git-lfs.github.com/spec/v1"
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    max_faces: int = 200_000
+    """MuJoCo's STL reader refuses more faces than this; larger meshes are decimated."""
+    strict_visual: bool = False
+    """A missing or unusable visual mesh is an error, not a warning that drops it."""
+
+
+class _Unusable(Exception):
+    """A mesh file that cannot be used; the message says why."""
+
+    def __init__(self, message: str, *, fatal: bool = False):
+        super().__init__(message)
+        self.fatal = fatal
+        """An error even for a visual (a Git LFS pointer means a broken checkout)."""
+
+
+Key = tuple[Path, Vec3]
+Palette = dict[str, tuple[MaterialAsset, TextureAsset | None]]
+"""Materials found in mesh files, by asset name, with their textures."""
+
+
+def run(model: Model, cfg: MeshConfig) -> Model:
+    robot = model.robot
+    meshes: dict[Key, LoadedMesh] = dict(model.meshes)
+    failed: dict[Key, _Unusable] = {}
+    palette: Palette = {}
+    notes = list(model.notes)
+
+    # Load in document order: link by link, visuals then collisions.
+    for link in robot.links:
+        for role, items in (("visual", link.visuals), ("collision", link.collisions)):
+            for item in items:
+                ref = item.geometry
+                if not isinstance(ref, MeshRef):
+                    continue
+                where = f"link '{link.name}' {role} mesh '{ref.filename}'"
+                problem = _ensure_loaded(ref, cfg, meshes, failed, palette, notes)
+                if problem is None:
+                    continue
+                if role == "collision" or cfg.strict_visual or problem.fatal:
+                    raise MeshError(str(problem), file=robot.source, element=where)
+                notes.append(Note("warning", where, f"{problem}; visual dropped"))
+                log.warning("%s: %s; visual dropped", where, problem)
+
+    out = _Assets(
+        {m.name: m for m in model.materials},
+        {t.name: t for t in model.textures},
+    )
+    ours: dict[str, list[Geom]] = {}
+    for link in robot.links:
+        for visual in link.visuals:
+            geometry = visual.geometry
+            if isinstance(geometry, MeshRef) and (geometry.path, geometry.scale) not in meshes:
+                continue  # dropped above
+            urdf_mat = _urdf_material(visual.material, notes, link.name)
+            geoms = ours.setdefault(link.name, [])
+            if isinstance(geometry, MeshRef):
+                loaded = meshes[(geometry.path, geometry.scale)]  # type: ignore[index]
+                geoms += _mesh_geoms(visual, loaded, urdf_mat, palette, out)
+            else:
+                material = out.use(*urdf_mat[0]) if urdf_mat else None
+                geoms.append(primitive_geom("visual", visual.origin, geometry, material=material))
+    # one merge for all: identical content stored once, under the first name
+    mesh_assets, renamed = assets.merge_assets(model.mesh_assets, list(out.pending.values()))
+    visual_geoms = dict(model.visual_geoms)
+    for name, geoms in ours.items():
+        visual_geoms[name] = tuple(
+            dataclasses.replace(g, mesh=renamed[g.mesh]) if g.mesh else g for g in geoms
+        )
+
+    return dataclasses.replace(
+        model,
+        meshes=meshes,
+        mesh_assets=mesh_assets,
+        textures=tuple(out.textures.values()),
+        materials=tuple(out.materials.values()),
+        visual_geoms=visual_geoms,
+        notes=tuple(notes),
+    )
+
+
+@dataclass
+class _Assets:
+    """The assets visual geoms use, each stored once, in order of first use."""
+
+    materials: dict[str, MaterialAsset]
+    textures: dict[str, TextureAsset]
+    pending: dict[str, MeshAsset] = field(default_factory=dict)
+    """New mesh assets by provisional name, merged once at the end (each merge is O(n))."""
+
+    def use(self, material: MaterialAsset, texture: TextureAsset | None) -> str:
+        self.materials.setdefault(material.name, material)
+        if texture is not None:
+            self.textures.setdefault(texture.name, texture)
+        return material.name
+
+    def add_mesh(self, asset: MeshAsset) -> str:
+        self.pending.setdefault(asset.name, asset)
+        return asset.name
+
+
+def _ensure_loaded(ref, cfg, meshes, failed, palette, notes) -> _Unusable | None:
+    """Load ``ref`` into ``meshes`` unless already tried; the problem, or None."""
+    if ref.path is None:
+        return _Unusable("cannot be resolved to a file (unknown package or bad path)")
+    key = (ref.path, ref.scale)
+    if key in meshes:
+        return None
+    if key not in failed:
+        try:
+            loaded, found, messages = _load(ref.path, ref.scale, cfg)
+        except _Unusable as exc:
+            failed[key] = exc
+        else:
+            meshes[key] = loaded
+            palette.update(found)
+            for kind, message in messages:
+                notes.append(Note(kind, f"mesh '{ref.filename}'", message))  # type: ignore[arg-type]
+                log.info("mesh '%s': %s", ref.filename, message)
+    return failed.get(key)
+
+
+def _load(
+    path: Path, scale: Vec3, cfg: MeshConfig
+) -> tuple[LoadedMesh, Palette, list[tuple[str, str]]]:
+    """One mesh file in metres, split by material, cleaned and within the face limit."""
+    ext = path.suffix.lower()
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise _Unusable(f"file not found: {path}") from None
+    except OSError as exc:
+        raise _Unusable(f"cannot read {path}: {exc}") from None
+    if data.startswith(LFS_MAGIC):
+        raise _Unusable(
+            f"{path} is a Git LFS pointer, not a mesh; run 'git lfs pull' in its repository",
+            fatal=True,
+        )
+    if ext not in FORMATS:
+        raise _Unusable(f"unsupported mesh format '{path.suffix}'; supported: {', '.join(FORMATS)}")
+
+    import trimesh  # heavy; only this pass needs it
+
+    notes: list[tuple[str, str]] = []
+    try:
+        source = _unbind_broken_materials(data, notes) if ext == ".dae" else data
+        scene = trimesh.load_scene(
+            io.BytesIO(source),
+            file_type=ext[1:],
+            # ROS meshes often reference '../textures/x.png'; trimesh 5 refuses that by default
+            resolver=trimesh.resolvers.FilePathResolver(str(path), allow_anywhere=True),
+            process=False,
+        )
+    except Exception as exc:  # trimesh and pycollada raise anything on bad input
+        raise _Unusable(f"cannot read {path}: {type(exc).__name__}: {exc}") from None
+
+    unit = _collada_unit(data) if ext == ".dae" else 1.0
+    linear = np.diag(np.asarray(scale, dtype=float) * unit)
+    stem = assets.safe_stem(path.stem)
+    groups: dict[str | None, list[MeshData]] = {}
+    palette: Palette = {}
+    for node in scene.graph.nodes_geometry:
+        matrix, geom_name = scene.graph[node]
+        mesh = scene.geometry[geom_name]
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            continue  # points and lines carry no surface
+        m = linear @ matrix[:3, :3]
+        verts = np.asarray(mesh.vertices, dtype=float) @ m.T + linear @ matrix[:3, 3]
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        if np.linalg.det(m) < 0:  # a mirror turns triangles inside out; keep normals outward
+            faces = faces[:, ::-1]
+        mat, uv = _own_material(mesh.visual, stem)
+        uv = uv if uv is not None and len(uv) == len(verts) else None
+        if mat is not None:
+            palette.setdefault(mat[0].name, mat)
+        name = mat[0].name if mat else None
+        groups.setdefault(name, []).append(MeshData(verts, faces, uv))
+
+    parts: list[MeshPart] = []
+    for i, (name, pieces) in enumerate(groups.items()):
+        # material-less parts keep their UVs for a URDF texture
+        keep_uv = name is None or palette[name][1] is not None
+        mesh = _decimate(_clean(_concat(pieces, keep_uv)), cfg.max_faces, f"part {i}", notes)
+        if len(mesh.vertices) >= 4:  # MuJoCo: "at least 4 vertices required"
+            parts.append(MeshPart(mesh, name))
+        elif len(mesh.faces):
+            notes.append(
+                ("warning", f"part {i} has fewer than 4 vertices, which MuJoCo refuses; dropped")
+            )
+    if not parts:
+        raise _Unusable(f"{path} contains no usable triangles")
+    merged = _clean(_concat([p.mesh for p in parts], keep_uv=False))
+    merged = _decimate(merged, cfg.max_faces, "all parts together", notes)
+    digest = hashlib.sha256(data + repr(tuple(float(s) for s in scale)).encode()).hexdigest()
+    loaded = LoadedMesh(path=path, scale=scale, parts=tuple(parts), merged=merged, sha256=digest)
+    used = {p.material for p in parts}
+    return loaded, {k: v for k, v in palette.items() if k in used}, notes
+
+
+def _unbind_broken_materials(data: bytes, notes: list[tuple[str, str]]) -> bytes:
+    """The document without bindings to materials pycollada could not load.
+
+    pycollada drops a whole geometry instance when one of its materials is
+    broken (say, a texture sampler without its surface); assimp, and so RViz,
+    still shows the geometry. Unbound, those triangles take the URDF colour.
+    """
+    import collada
+    from lxml import etree
+
+    doc = collada.Collada(io.BytesIO(data), ignore=[collada.common.DaeError])
+    if not doc.errors:
+        return data
+    loaded = {m.id for m in doc.materials}
+    root = etree.fromstring(data, etree.XMLParser(huge_tree=True))
+    broken = []
+    for el in root.iter("{*}instance_material"):
+        target = el.get("target", "").lstrip("#")
+        if target not in loaded:
+            broken.append(target)
+            el.getparent().remove(el)
+    if not broken:
+        return data
+    names = ", ".join(sorted(set(broken)))
+    notes.append(("warning", f"unreadable Collada material(s) {names}; their parts lose colour"))
+    return etree.tostring(root)
+
+
+def _collada_unit(data: bytes) -> float:
+    """``COLLADA/asset/unit@meter`` (metres per file unit), read as RViz reads it."""
+    try:
+        for _, el in ET.iterparse(io.BytesIO(data), events=("end",)):
+            tag = el.tag.rsplit("}", 1)[-1]
+            if tag == "unit":
+                return float(el.get("meter", "1"))
+            if tag == "asset":  # the document's asset comes first; it has no unit
+                return 1.0
+    except (ET.ParseError, ValueError):
+        pass  # pycollada already accepted the file; keep its units
+    return 1.0
+
+
+def _own_material(
+    visual, stem: str
+) -> tuple[tuple[MaterialAsset, TextureAsset | None] | None, np.ndarray | None]:
+    """The mesh file's material for one trimesh geometry, and its UVs."""
+    from trimesh.visual import ColorVisuals, TextureVisuals
+    from trimesh.visual.material import color_image
+
+    if isinstance(visual, ColorVisuals):
+        if visual.kind is None:
+            return None, None
+        return (_material(stem, _rgba(visual.main_color), None), None), None  # one colour per part
+    if not isinstance(visual, TextureVisuals):
+        return None, None
+    mat = visual.material
+    mat = mat.to_simple() if hasattr(mat, "baseColorFactor") else mat
+    uv = None if visual.uv is None else np.asarray(visual.uv, dtype=float)
+    image = getattr(mat, "image", None)
+    placeholder = color_image()  # trimesh's stand-in when an OBJ has UVs but no material
+    if (
+        image is not None
+        and image.size == placeholder.size
+        and image.tobytes() == placeholder.tobytes()
+    ):
+        return None, uv
+    name = mat.name if mat.name not in (None, "material_0") else stem  # trimesh's default name
+    texture = None
+    if image is not None and uv is not None:
+        tex_stem = Path(image.info.get("file_path", name)).stem
+        texture = _texture(tex_stem, image)
+    else:
+        uv = None
+    rgba = _rgba(mat.diffuse)
+    if rgba[3] == 0.0:  # invisible: an exporter's transparency mix-up, not an intent
+        rgba = (*rgba[:3], 1.0)
+    return (_material(name, rgba, texture), texture), uv
+
+
+def _rgba(color) -> RGBA:
+    c = [round(float(x) / 255.0, 4) for x in np.asarray(color)[:4]]
+    return (c[0], c[1], c[2], c[3] if len(c) > 3 else 1.0)
+
+
+def _material(stem: str, rgba: RGBA, texture: TextureAsset | None) -> MaterialAsset:
+    key = repr((rgba, texture.name if texture else None)).encode()
+    return MaterialAsset(
+        name=assets.content_name(stem, key), rgba=rgba, texture=texture.name if texture else None
+    )
+
+
+def _texture(stem: str, image) -> TextureAsset:
+    """8-bit RGB (RGBA if any pixel is translucent) PNG; the bytes depend on the pixels alone."""
+    rgba = image.convert("RGBA")
+    opaque = rgba.getchannel("A").getextrema() == (255, 255)
+    pixels = rgba.convert("RGB") if opaque else rgba
+    data = _png(pixels.mode, pixels.size, pixels.tobytes())
+    name = assets.content_name(stem, data)
+    return TextureAsset(name=name, file=f"{name}.png", data=data)
+
+
+@functools.lru_cache(maxsize=16)  # one texture is often shared by many mesh files
+def _png(mode: str, size: tuple[int, int], pixels: bytes) -> bytes:
+    """Fixed settings and no metadata (fresh image), so the encoding is reproducible."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.frombytes(mode, size, pixels).save(buf, format="PNG", optimize=False, compress_level=6)
+    return buf.getvalue()
+
+
+def _urdf_material(material: Material | None, notes: list[Note], link: str):
+    """The URDF colour as ((textured material, texture), (plain material, None)), or None.
+
+    Textures need UVs: primitives (mapped by MuJoCo) and mesh parts with UVs
+    take the first, parts without UVs the second.
+    """
+    if material is None or (material.rgba is None and material.texture is None):
+        return None
+    rgba = material.rgba if material.rgba is not None else (1.0, 1.0, 1.0, 1.0)
+    stem = material.name or "material"
+    plain = (_material(stem, rgba, None), None)
+    if material.texture is None:
+        return plain, plain
+    try:
+        from PIL import Image
+
+        with Image.open(material.texture) as img:
+            texture = _texture(material.texture.stem, img)
+    except OSError as exc:
+        where = f"link '{link}' material '{material.name}'"
+        notes.append(
+            Note("warning", where, f"texture {material.texture} unreadable ({exc}); colour only")
+        )
+        return plain, plain
+    return (_material(stem, rgba, texture), texture), plain
+
+
+def _mesh_geoms(
+    visual: Visual, loaded: LoadedMesh, urdf_mat, palette: Palette, out: _Assets
+) -> list[Geom]:
+    """One geom per part, placed at the visual origin."""
+    stem = assets.safe_stem(loaded.path.stem)
+    pos, quat = vec3(visual.origin.xyz), quat_from_rpy(visual.origin.rpy)
+    geoms = []
+    for i, part in enumerate(loaded.parts):
+        mesh = part.mesh
+        material = palette.get(part.material) if part.material else None
+        if material is None and urdf_mat is not None:
+            material = urdf_mat[0] if mesh.uv is not None else urdf_mat[1]
+        if mesh.uv is not None and (material is None or material[1] is None):
+            mesh = MeshData(mesh.vertices, mesh.faces)  # untextured: STL, not OBJ
+        name = out.add_mesh(
+            assets.mesh_asset(stem if len(loaded.parts) == 1 else f"{stem}_{i}", mesh)
+        )
+        geoms.append(
+            Geom(
+                role="visual",
+                type="mesh",
+                pos=pos,
+                quat=quat,
+                mesh=name,
+                material=out.use(*material) if material else None,
+            )
+        )
+    return geoms
+
+
+def _concat(pieces: list[MeshData], keep_uv: bool) -> MeshData:
+    offsets = np.cumsum([0] + [len(p.vertices) for p in pieces])
+    verts = np.concatenate([p.vertices for p in pieces])
+    faces = np.concatenate([p.faces + o for p, o in zip(pieces, offsets[:-1], strict=True)])
+    uv = None
+    if keep_uv and any(p.uv is not None for p in pieces):
+        uv = np.concatenate(
+            [p.uv if p.uv is not None else np.zeros((len(p.vertices), 2)) for p in pieces]
+        )
+    return MeshData(verts, faces, uv)
+
+
+def _clean(mesh: MeshData) -> MeshData:
+    """Merge identical vertices, drop degenerate and repeated faces and unused vertices.
+
+    Every step keeps first-occurrence order, so the result depends on the input alone.
+    """
+    v, f, uv = mesh.vertices, mesh.faces, mesh.uv
+    if len(f):
+        key = v if uv is None else np.hstack([v, uv])
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), dtype=np.int64)
+        rank[np.argsort(first)] = np.arange(len(first))
+        keep = np.sort(first)
+        v, uv, f = v[keep], None if uv is None else uv[keep], rank[inverse.reshape(-1)][f]
+        tri = v[f]
+        doubled_area = np.linalg.norm(
+            np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1
+        )
+        size = float(np.ptp(v, axis=0).max()) if len(v) else 0.0
+        ok = (
+            (f[:, 0] != f[:, 1])
+            & (f[:, 1] != f[:, 2])
+            & (f[:, 0] != f[:, 2])
+            & (doubled_area > 1e-12 * size**2)
+        )
+        f = f[ok]
+        # a face repeated with the same winding (any rotation) is a duplicate;
+        # the reverse winding is kept, it is the back of a two-sided sheet
+        rot = np.argmin(f, axis=1)[:, None]
+        canon = np.take_along_axis(f, (rot + np.arange(3)) % 3, axis=1)
+        _, first = np.unique(canon, axis=0, return_index=True)
+        f = f[np.sort(first)]
+    used = np.zeros(len(v), dtype=bool)
+    used[f.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    return MeshData(
+        v[used], remap[f].reshape(-1, 3).astype(np.int64), None if uv is None else uv[used]
+    )
+
+
+def _decimate(mesh: MeshData, max_faces: int, what: str, notes: list[tuple[str, str]]) -> MeshData:
+    """Quadric decimation (fast-simplification, deterministic) to at most ``max_faces``."""
+    if len(mesh.faces) <= max_faces:
+        return mesh
+    try:
+        import fast_simplification
+    except ImportError:
+        raise _Unusable(
+            f"has {len(mesh.faces)} faces, more than the limit of {max_faces}; "
+            "decimating it needs 'pip install fast-simplification'"
+        ) from None
+    target, out = max_faces, mesh
+    while len(out.faces) > max_faces and target > 4:
+        verts, faces = fast_simplification.simplify(mesh.vertices, mesh.faces, target_count=target)
+        uv = None
+        if mesh.uv is not None:  # each new vertex takes the UV of the nearest old one
+            from scipy.spatial import cKDTree
+
+            uv = mesh.uv[cKDTree(mesh.vertices).query(verts)[1]]
+        out = _clean(
+            MeshData(np.asarray(verts, dtype=float), np.asarray(faces, dtype=np.int64), uv)
+        )
+        target = int(target * 0.9)
+    notes.append(
+        (
+            "decimated",
+            f"{what}: {len(mesh.faces)} faces decimated to {len(out.faces)} (limit {max_faces})",
+        )
+    )
+    return out
