@@ -12,7 +12,9 @@ DATA = Path(__file__).parent / "data"
 
 @pytest.fixture(scope="session", autouse=True)
 def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    cache = tmp_path_factory.getbasetemp().parent / "urdf2mjcf-cache"
+    # One cold cache per test run, shared by the xdist workers of that run.
+    base = tmp_path_factory.getbasetemp()
+    cache = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "urdf2mjcf-cache"
     cache.mkdir(parents=True, exist_ok=True)
     os.environ["URDF2MJCF_CACHE"] = str(cache)
     return cache

@@ -112,9 +112,52 @@ def compare_with_pinocchio(
                 worst[1], float(np.abs(md.xmat[body.id].reshape(3, 3) - placement.rotation).max())
             )
         g_pin = pin.computeGeneralizedGravity(pm, pd, q)
-        scale = max(float(np.abs(g_pin).max()), 1e-9)
+        scale = max(float(np.abs(g_pin).max(initial=0.0)), 1e-9)
         for name in mj_joints:
             pj = pm.joints[pin_joints[name]]
             mj_val = md.qfrc_bias[mm.joint(name).dofadr[0]]
             worst[2] = max(worst[2], abs(mj_val - g_pin[pj.idx_v]) / scale)
     return Comparison(worst[0], worst[1], worst[2], len(links), mm.nv)
+
+
+def check_robot(urdf: Path, out_dir: Path, **options) -> dict:
+    """Convert one corpus robot and compare it with pinocchio.
+
+    Returns a JSON-ready summary: sizes, worst errors, and every inertial we
+    changed (repaired or estimated) with the reason. Used by the corpus test
+    and by ``bench/corpus_report.py``, which writes docs/corpus.md.
+    """
+    import urdf2mjcf
+
+    out = out_dir / "robot.xml"
+    report = urdf2mjcf.convert(urdf, out, package_paths=[example_robot_data_share()], use_environment=False, **options)
+    model = report.model
+    summary = {
+        "robot": urdf.stem,
+        "file": str(urdf.relative_to(example_robot_data_share())),
+        "links": len(model.robot.links),
+        "changed_inertials": {n.element: n.message for n in report.notes if n.kind in ("repaired", "estimated")},
+        "warnings": [f"{n.element}: {n.message}" for n in report.warnings],
+        "decomposed": len(report.decomposed) + len(report.cached),
+    }
+    if not model.robot.links:
+        m = mujoco.MjModel.from_xml_path(str(out))
+        summary.update(bodies=m.nbody - 1, dofs=m.nv, frames=0, pos_err=0.0, rot_err=0.0, gravity_rel_err=0.0)
+        return summary
+    joints = model.robot.joint_map
+    mimics = {  # as emitted: a mimic involving a fixed joint is ignored with a warning
+        j.name: (j.mimic.joint, j.mimic.multiplier, j.mimic.offset)
+        for j in model.robot.joints
+        if j.mimic and "fixed" not in (j.type, joints[j.mimic.joint].type)
+    }
+    reference = patched_urdf(urdf, model, out_dir / "reference.urdf")
+    cmp = compare_with_pinocchio(reference, out, mimics)
+    summary.update(
+        bodies=report.bodies,
+        dofs=cmp.dofs,
+        frames=cmp.frames,
+        pos_err=cmp.max_frame_pos_err,
+        rot_err=cmp.max_frame_rot_err,
+        gravity_rel_err=cmp.max_gravity_rel_err,
+    )
+    return summary

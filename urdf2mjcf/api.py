@@ -10,7 +10,7 @@ from pathlib import Path
 from . import output as out
 from .errors import OutputError
 from .ir import Model
-from .passes import collision, emit, inertia, meshes, parse, validate, xacro
+from .passes import collision, emit, inertia, meshes, parse, scene, validate, xacro
 from .report import Report
 
 log = logging.getLogger(__name__)
@@ -121,7 +121,7 @@ def convert(
     files[output.name] = result.xml
     check = output
     if options.scene:
-        files[scene_name] = emit.scene_xml(output.name, options.emit.model_name or model.robot.name)
+        files[scene_name] = scene.run(result, output.name, options.emit.model_name or model.robot.name)
         check = output.with_name(scene_name)
     validated: list = []
 

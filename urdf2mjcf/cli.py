@@ -207,7 +207,7 @@ def urdf2mjcf_command(
         report_path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
     if not quiet:
         for note in report.notes:
-            if note.kind == "warning" or verbose:
+            if note.kind in ("warning", "repaired", "decimated") or verbose:
                 click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
         click.echo(f"wrote {output}")
         click.echo(report.summary())

@@ -377,7 +377,16 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     for child in tree.children:
         _body_element(worldbody, child, model, True, entries, notes)
 
-    mimics = [j for j in robot.joints if j.mimic is not None and j.type != "fixed"]
+    mimics = []
+    for j in robot.joints:
+        if j.mimic is None:
+            continue
+        leader = robot.joint_map[j.mimic.joint]
+        if j.type == "fixed" or leader.type == "fixed":
+            message = f"mimics '{leader.name}' ({leader.type}) but one of them is fixed; mimic ignored"
+            notes.append(Note("warning", f"joint '{j.name}'", message))
+            continue
+        mimics.append(j)
     if mimics:
         equality = etree.SubElement(mj, "equality")
         for j in mimics:
@@ -398,61 +407,3 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     etree.indent(mj, space="  ")
     xml = etree.tostring(mj, encoding="utf-8", xml_declaration=False) + b"\n"
     return EmitResult(xml=xml, files=files, qpos_home=qpos, notes=tuple(notes))
-
-
-def scene_xml(robot_file: str, model_name: str) -> bytes:
-    """A ``scene.xml`` that includes the robot and adds floor, light and sky."""
-    mj = etree.Element("mujoco", model=f"{model_name} scene")
-    _set(etree.SubElement(mj, "include"), file=robot_file)
-    _set(etree.SubElement(mj, "statistic"), center=(0, 0, 0.4), extent=1.5)
-    visual = etree.SubElement(mj, "visual")
-    _set(
-        etree.SubElement(visual, "headlight"),
-        diffuse=(0.6, 0.6, 0.6),
-        ambient=(0.3, 0.3, 0.3),
-        specular=(0, 0, 0),
-    )
-    _set(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
-    _set(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
-    asset = etree.SubElement(mj, "asset")
-    _set(
-        etree.SubElement(asset, "texture"),
-        name="scene_skybox",
-        type="skybox",
-        builtin="gradient",
-        rgb1=(0.3, 0.5, 0.7),
-        rgb2=(0, 0, 0),
-        width=512,
-        height=3072,
-    )
-    _set(
-        etree.SubElement(asset, "texture"),
-        name="scene_groundplane",
-        type="2d",
-        builtin="checker",
-        mark="edge",
-        rgb1=(0.2, 0.3, 0.4),
-        rgb2=(0.1, 0.2, 0.3),
-        markrgb=(0.8, 0.8, 0.8),
-        width=300,
-        height=300,
-    )
-    _set(
-        etree.SubElement(asset, "material"),
-        name="scene_groundplane",
-        texture="scene_groundplane",
-        texuniform="true",
-        texrepeat=(5, 5),
-        reflectance=0.2,
-    )
-    worldbody = etree.SubElement(mj, "worldbody")
-    _set(etree.SubElement(worldbody, "light"), pos=(0, 0, 3.5), dir=(0, 0, -1), directional="true")
-    _set(
-        etree.SubElement(worldbody, "geom"),
-        name="floor",
-        size=(0, 0, 0.05),
-        type="plane",
-        material="scene_groundplane",
-    )
-    etree.indent(mj, space="  ")
-    return etree.tostring(mj, encoding="utf-8") + b"\n"

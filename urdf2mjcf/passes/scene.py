@@ -1,0 +1,126 @@
+"""Scene: a ``scene.xml`` that includes the robot and adds floor, light and sky.
+
+The floor goes through the lowest point of the robot's collision geometry in
+its home pose (never above the world origin): URDF root links often sit at
+the pelvis or base centre, and a floor at z = 0 would start a humanoid with
+its legs deep in the ground. A fixed-base robot then hangs just above the
+floor; a floating one stands on it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from lxml import etree
+
+from .emit import EmitResult, _set
+
+
+def lowest_point(result: EmitResult) -> float | None:
+    """World z of the lowest collision geometry at the home keyframe (None: no geoms)."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_string(result.xml.decode(), dict(result.files))
+    d = mujoco.MjData(m)
+    if m.nkey:
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_kinematics(m, d)
+    colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+    geoms = colliding or list(range(m.ngeom))
+    if not geoms:
+        return None
+    return min(_geom_bottom(m, d, g) for g in geoms)
+
+
+def _geom_bottom(m, d, g: int) -> float:
+    import mujoco
+
+    z = float(d.geom_xpos[g][2])
+    r = d.geom_xmat[g].reshape(3, 3)
+    size = m.geom_size[g]
+    t = m.geom_type[g]
+    if t == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = m.geom_dataid[g]
+        start, count = m.mesh_vertadr[mesh], m.mesh_vertnum[mesh]
+        verts = m.mesh_vert[start : start + count]
+        return z + float((verts @ r[2]).min())
+    if t == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return z - size[0]
+    if t == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return z - size[0] - abs(r[2, 2]) * size[1]
+    if t == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        return z - abs(r[2, 2]) * size[1] - size[0] * math.sqrt(max(0.0, 1 - r[2, 2] ** 2))
+    if t in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
+        return z - float(np.abs(r[2]) @ size)
+    return z  # planes and height fields have no bottom to speak of
+
+
+def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
+    """The scene document; ``floor_z`` is the height of the floor plane."""
+    mj = etree.Element("mujoco", model=f"{model_name} scene")
+    _set(etree.SubElement(mj, "include"), file=robot_file)
+    _set(etree.SubElement(mj, "statistic"), center=(0, 0, max(floor_z + 0.5, 0.3)), extent=1.5)
+    visual = etree.SubElement(mj, "visual")
+    _set(
+        etree.SubElement(visual, "headlight"),
+        diffuse=(0.6, 0.6, 0.6),
+        ambient=(0.3, 0.3, 0.3),
+        specular=(0, 0, 0),
+    )
+    _set(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
+    _set(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
+    asset = etree.SubElement(mj, "asset")
+    _set(
+        etree.SubElement(asset, "texture"),
+        name="scene_skybox",
+        type="skybox",
+        builtin="gradient",
+        rgb1=(0.3, 0.5, 0.7),
+        rgb2=(0, 0, 0),
+        width=512,
+        height=3072,
+    )
+    _set(
+        etree.SubElement(asset, "texture"),
+        name="scene_groundplane",
+        type="2d",
+        builtin="checker",
+        mark="edge",
+        rgb1=(0.2, 0.3, 0.4),
+        rgb2=(0.1, 0.2, 0.3),
+        markrgb=(0.8, 0.8, 0.8),
+        width=300,
+        height=300,
+    )
+    _set(
+        etree.SubElement(asset, "material"),
+        name="scene_groundplane",
+        texture="scene_groundplane",
+        texuniform="true",
+        texrepeat=(5, 5),
+        reflectance=0.2,
+    )
+    worldbody = etree.SubElement(mj, "worldbody")
+    _set(
+        etree.SubElement(worldbody, "light"),
+        pos=(0, 0, floor_z + 3.5),
+        dir=(0, 0, -1),
+        directional="true",
+    )
+    _set(
+        etree.SubElement(worldbody, "geom"),
+        name="floor",
+        pos=(0, 0, floor_z) if floor_z else None,
+        size=(0, 0, 0.05),
+        type="plane",
+        material="scene_groundplane",
+    )
+    etree.indent(mj, space="  ")
+    return etree.tostring(mj, encoding="utf-8") + b"\n"
+
+
+def run(result: EmitResult, robot_file: str, model_name: str) -> bytes:
+    lowest = lowest_point(result)
+    floor_z = min(0.0, lowest) if lowest is not None else 0.0
+    return scene_xml(robot_file, model_name, floor_z)
