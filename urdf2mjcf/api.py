@@ -121,7 +121,9 @@ def convert(
     files[output.name] = result.xml
     check = output
     if options.scene:
-        files[scene_name] = scene.run(result, output.name, options.emit.model_name or model.robot.name)
+        files[scene_name] = scene.run(
+            result, output.name, options.emit.model_name or model.robot.name
+        )
         check = output.with_name(scene_name)
     validated: list = []
 

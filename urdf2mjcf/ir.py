@@ -366,6 +366,88 @@ class BodyInertial:
     source: Literal["urdf", "repaired", "estimated"] = "urdf"
 
 
+ActuatorKind = Literal["position", "velocity", "motor"]
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """One MuJoCo actuator driving one joint (mimic followers get none)."""
+
+    name: str
+    """Actuator name; by convention the joint name."""
+    joint: str
+    kind: ActuatorKind
+    """``position`` (servo with kp, kv), ``velocity`` (gain kv) or ``motor`` (torque)."""
+    kp: float | None = None
+    """Position gain, N m/rad or N/m (position actuators)."""
+    kv: float | None = None
+    """Velocity gain: damping of a position servo, or the gain of a velocity actuator."""
+    ctrlrange: tuple[float, float] | None = None
+    """Command range: rad or m (position), rad/s or m/s (velocity), N m or N (motor)."""
+    forcerange: tuple[float, float] | None = None
+    """Force/torque limit, N m or N."""
+    actuator_class: str | None = None
+    """Default class name, for grouping actuators of one size."""
+
+
+@dataclass(frozen=True)
+class JointTuning:
+    """Joint properties that controllers care about, set from actuator parameters."""
+
+    armature: float | None = None
+    """Reflected rotor inertia, kg m^2 (or kg)."""
+    damping: float | None = None
+    """N m s/rad; replaces the URDF <dynamics> damping when given."""
+    frictionloss: float | None = None
+    """N m; replaces the URDF <dynamics> friction when given."""
+
+
+@dataclass(frozen=True)
+class Site:
+    name: str
+    body: str
+    """Link the site is attached to."""
+    pos: Vec3 = (0.0, 0.0, 0.0)
+    quat: Quat = (1.0, 0.0, 0.0, 0.0)
+    type: Literal["sphere", "box"] = "sphere"
+    size: tuple[float, ...] = (0.005,)
+    """MuJoCo site size (sphere radius; box half-extents), metres."""
+
+
+@dataclass(frozen=True)
+class Camera:
+    name: str
+    body: str
+    pos: Vec3
+    quat: Quat
+    """MuJoCo camera frame in the link frame: looks along -z, +y up."""
+    fovy: float
+    """Vertical field of view, degrees."""
+    resolution: tuple[int, int]
+    """(width, height), pixels."""
+    depth: bool = False
+    """True when the description asks for depth images too (RGBD)."""
+    near: float | None = None
+    far: float | None = None
+    """Clip distances from the description, metres (reported; MuJoCo clips globally)."""
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One MuJoCo sensor element."""
+
+    name: str
+    type: str
+    """MuJoCo sensor element: accelerometer, gyro, framequat, force, torque,
+    rangefinder, touch, jointpos, jointvel, ..."""
+    site: str | None = None
+    joint: str | None = None
+    objtype: str | None = None
+    objname: str | None = None
+    noise: float | None = None
+    cutoff: float | None = None
+
+
 NoteKind = Literal[
     "warning", "repaired", "estimated", "decomposed", "cached", "hull", "decimated", "info"
 ]
@@ -399,4 +481,12 @@ class Model:
     visual_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
     collision_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
     inertials: Mapping[str, BodyInertial | None] = field(default_factory=dict)
+    actuators: tuple[Actuator, ...] = ()
+    joint_tuning: Mapping[str, JointTuning] = field(default_factory=dict)
+    """Joint name -> armature, damping, friction from actuator parameters."""
+    gravcomp: Mapping[str, float] = field(default_factory=dict)
+    """Link name -> gravity compensation (0..1, MuJoCo body ``gravcomp``)."""
+    sites: tuple[Site, ...] = ()
+    cameras: tuple[Camera, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
     notes: tuple[Note, ...] = ()

@@ -9,7 +9,7 @@ doubles round-trip; the output is a pure function of the model.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +17,7 @@ from lxml import etree
 
 from ..errors import URDFError
 from ..fmt import fmt_float, fmt_vec
-from ..ir import BodyInertial, Geom, Joint, Model, Note, Quat, Vec3
+from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
 from ..transforms import (
     IDENTITY_QUAT,
     mujoco_fullinertia,
@@ -67,13 +67,25 @@ class _Body:
     joint: Joint | None = None
     inertial: BodyInertial | None = None
     geoms: list[Geom] = field(default_factory=list)
-    sites: list[tuple[str, Vec3, Quat]] = field(default_factory=list)
+    sites: list[Site] = field(default_factory=list)
+    cameras: list[Camera] = field(default_factory=list)
+    gravcomp: float = 0.0
     children: list[_Body] = field(default_factory=list)
 
 
-def _moved_geom(g: Geom, t: np.ndarray) -> Geom:
-    pos, quat = split_transform(t @ transform(g.pos, g.quat))
-    return Geom(**{**g.__dict__, "pos": pos, "quat": quat})
+def _moved(item, t: np.ndarray):
+    """A geom, site or camera moved by the transform ``t`` (fusing a fixed link)."""
+    pos, quat = split_transform(t @ transform(item.pos, item.quat))
+    return replace(item, pos=pos, quat=quat)
+
+
+def _is_frame(link: Link, model: Model) -> bool:
+    """A link that is only a frame: no inertial, no geometry (tool0, optical frames)."""
+    return (
+        model.inertials.get(link.name) is None
+        and not model.visual_geoms.get(link.name)
+        and not model.collision_geoms.get(link.name)
+    )
 
 
 def _combine(a: BodyInertial | None, b: BodyInertial | None, t: np.ndarray) -> BodyInertial | None:
@@ -106,12 +118,25 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
     robot = model.robot
     world = _Body(WORLD)
 
+    sites: dict[str, list[Site]] = {}
+    for site in model.sites:
+        sites.setdefault(site.body, []).append(site)
+    cameras: dict[str, list[Camera]] = {}
+    for camera in model.cameras:
+        cameras.setdefault(camera.body, []).append(camera)
+    named_sites = {site.name for site in model.sites}
+
     def make(link: str) -> _Body:
         body = _Body(link)
         body.inertial = model.inertials.get(link)
         body.geoms = list(model.visual_geoms.get(link, ())) + list(
             model.collision_geoms.get(link, ())
         )
+        body.sites = list(sites.get(link, ()))
+        if link != WORLD and link not in named_sites and _is_frame(robot.link_map[link], model):
+            body.sites.insert(0, Site(link, link))  # frames stay findable: tool0, optical frames
+        body.cameras = list(cameras.get(link, ()))
+        body.gravcomp = model.gravcomp.get(link, 0.0)
         for joint in robot.child_joints.get(link, ()):
             child = make(joint.child)
             child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
@@ -126,7 +151,8 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
         return world
     root = make(robot.root)
     if robot.root == WORLD:
-        world.geoms, world.children, world.sites = root.geoms, root.children, root.sites
+        world.geoms, world.children = root.geoms, root.children
+        world.sites, world.cameras = root.sites, root.cameras
     else:
         world.children.append(root)
     return world
@@ -134,11 +160,13 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
 
 def _fuse(parent: _Body, child: _Body) -> None:
     t = transform(child.pos, child.quat)
-    parent.geoms += [_moved_geom(g, t) for g in child.geoms]
+    parent.geoms += [_moved(g, t) for g in child.geoms]
     parent.inertial = _combine(parent.inertial, child.inertial, t)
-    parent.sites.append((child.name, child.pos, child.quat))
-    for name, pos, quat in child.sites:
-        parent.sites.append((name, *split_transform(t @ transform(pos, quat))))
+    if not any(site.name == child.name for site in child.sites):
+        parent.sites.append(Site(child.name, parent.name, child.pos, child.quat))
+    parent.sites += [_moved(site, t) for site in child.sites]
+    parent.cameras += [_moved(camera, t) for camera in child.cameras]
+    parent.gravcomp = parent.gravcomp or child.gravcomp
     for grandchild in child.children:
         grandchild.pos, grandchild.quat = split_transform(
             t @ transform(grandchild.pos, grandchild.quat)
@@ -203,6 +231,13 @@ def _joint_elements(
     if dyn is not None:
         common["damping"] = dyn.damping or None
         common["frictionloss"] = dyn.friction or None
+    tuning = model.joint_tuning.get(joint.name)
+    if tuning is not None:
+        common["armature"] = tuning.armature or None
+        if tuning.damping is not None:
+            common["damping"] = tuning.damping or None
+        if tuning.frictionloss is not None:
+            common["frictionloss"] = tuning.frictionloss or None
     if joint.type in ("revolute", "continuous", "prismatic"):
         rng = _limits(joint, model.robot.source, notes)
         el = etree.SubElement(body_el, "joint")
@@ -263,6 +298,19 @@ def _geom_element(parent: etree._Element, g: Geom) -> None:
     _set(el, material=g.material, rgba=g.rgba)
 
 
+def _body_contents(el: etree._Element, body: _Body) -> None:
+    """Geoms, sites and cameras of a body (or of the world body)."""
+    for g in body.geoms:
+        _geom_element(el, g)
+    for site in body.sites:
+        size = site.size if site.size != Site.size else None  # MuJoCo's default site size
+        _set(etree.SubElement(el, "site"), name=site.name, **_pose_attrs(site.pos, site.quat))
+        _set(el[-1], type=site.type if site.type != "sphere" else None, size=size)
+    for cam in body.cameras:
+        _set(etree.SubElement(el, "camera"), name=cam.name, **_pose_attrs(cam.pos, cam.quat))
+        _set(el[-1], fovy=cam.fovy, resolution=cam.resolution)
+
+
 def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
     el = etree.SubElement(parent, "inertial")
     ixx, iyy, izz, ixy, ixz, iyz = inertial.fullinertia
@@ -277,19 +325,67 @@ def _body_element(
     parent: etree._Element, body: _Body, model: Model, at_world: bool, qpos: list, notes: list[Note]
 ) -> None:
     el = etree.SubElement(parent, "body")
-    _set(el, name=body.name, **_pose_attrs(body.pos, body.quat))
+    _set(el, name=body.name, **_pose_attrs(body.pos, body.quat), gravcomp=body.gravcomp or None)
     if body.inertial is not None:
         _inertial_element(el, body.inertial)
     qpos.extend(
         (name, kind, home, body)
         for name, kind, home in _joint_elements(el, body, model, at_world, notes)
     )
-    for g in body.geoms:
-        _geom_element(el, g)
-    for name, pos, quat in body.sites:
-        _set(etree.SubElement(el, "site"), name=name, **_pose_attrs(pos, quat))
+    _body_contents(el, body)
     for child in body.children:
         _body_element(el, child, model, False, qpos, notes)
+
+
+_ACTUATOR_ATTRS = {
+    "position": ("kp", "kv", "forcerange"),
+    "velocity": ("kv", "forcerange"),
+    "motor": ("forcerange",),
+}
+
+
+def _actuator_attrs(a: Actuator) -> dict[str, object]:
+    values = {"kp": a.kp, "kv": a.kv, "forcerange": a.forcerange}
+    return {k: values[k] for k in _ACTUATOR_ATTRS[a.kind] if values[k] is not None}
+
+
+def _actuator_section(mj: etree._Element, default: etree._Element, model: Model) -> None:
+    """Actuators; those sharing a class take the class's gains from a default class."""
+    if not model.actuators:
+        return
+    classes: dict[str, dict[str, dict[str, object]]] = {}
+    for a in model.actuators:
+        if a.actuator_class:
+            classes.setdefault(a.actuator_class, {}).setdefault(a.kind, _actuator_attrs(a))
+    for name, kinds in classes.items():
+        cls = etree.SubElement(default, "default")
+        cls.set("class", name)
+        for kind, attrs in kinds.items():
+            _set(etree.SubElement(cls, kind), **attrs)
+    section = etree.SubElement(mj, "actuator")
+    for a in model.actuators:
+        inherited = classes.get(a.actuator_class or "", {}).get(a.kind, {})
+        attrs = {k: v for k, v in _actuator_attrs(a).items() if inherited.get(k) != v}
+        el = etree.SubElement(section, a.kind)
+        _set(el, name=a.name, **({"class": a.actuator_class} if a.actuator_class else {}))
+        _set(el, joint=a.joint, ctrlrange=a.ctrlrange, **attrs)
+
+
+def _sensor_section(mj: etree._Element, model: Model) -> None:
+    if not model.sensors:
+        return
+    section = etree.SubElement(mj, "sensor")
+    for sensor in model.sensors:
+        _set(
+            etree.SubElement(section, sensor.type),
+            name=sensor.name,
+            site=sensor.site,
+            joint=sensor.joint,
+            objtype=sensor.objtype,
+            objname=sensor.objname,
+            noise=sensor.noise,
+            cutoff=sensor.cutoff,
+        )
 
 
 def _home_qpos(entries: list, model: Model) -> tuple[float, ...]:
@@ -369,13 +465,17 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
             files[f"{cfg.meshdir}/{mesh.file}"] = mesh.data
 
     worldbody = etree.SubElement(mj, "worldbody")
-    for g in tree.geoms:
-        _geom_element(worldbody, g)
-    for name, pos, quat in tree.sites:
-        _set(etree.SubElement(worldbody, "site"), name=name, **_pose_attrs(pos, quat))
+    _body_contents(worldbody, tree)
     entries: list = []
     for child in tree.children:
         _body_element(worldbody, child, model, True, entries, notes)
+
+    # MuJoCo filters parent-child contacts except with the world body.
+    if any(g.role == "collision" for g in tree.geoms):
+        contact = etree.SubElement(mj, "contact")
+        for child in tree.children:
+            if child.joint is not None:
+                _set(etree.SubElement(contact, "exclude"), body1=WORLD, body2=child.name)
 
     mimics = []
     for j in robot.joints:
@@ -383,7 +483,9 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
             continue
         leader = robot.joint_map[j.mimic.joint]
         if j.type == "fixed" or leader.type == "fixed":
-            message = f"mimics '{leader.name}' ({leader.type}) but one of them is fixed; mimic ignored"
+            message = (
+                f"mimics '{leader.name}' ({leader.type}) but one of them is fixed; mimic ignored"
+            )
             notes.append(Note("warning", f"joint '{j.name}'", message))
             continue
         mimics.append(j)
@@ -399,6 +501,9 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
                 solref=cfg.mimic_solref,
                 solimp=cfg.mimic_solimp,
             )
+
+    _actuator_section(mj, default, model)
+    _sensor_section(mj, model)
 
     qpos = _home_qpos(entries, model)
     if qpos:
