@@ -33,25 +33,25 @@ def main() -> int:
         "rotation-matrix entries against pinocchio, and joint gravity torques",
         "relative to the largest one.",
         "",
-        "| robot | links | bodies | dofs | frame pos err | frame rot err | gravity rel err | inertials changed | meshes decomposed |",
+        "| file | links | bodies | dofs | frame pos err | frame rot err | gravity rel err | inertials changed | meshes decomposed |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['robot']} | {r['links']} | {r['bodies']} | {r['dofs']} | {r['pos_err']:.1e} | "
+            f"| `{r['file'].split('/robots/')[-1]}` | {r['links']} | {r['bodies']} | {r['dofs']} | {r['pos_err']:.1e} | "
             f"{r['rot_err']:.1e} | {r['gravity_rel_err']:.1e} | {len(r['changed_inertials'])} | {r['decomposed']} |"
         )
     lines += ["", "## Inertials repaired or estimated", ""]
     for r in rows:
         if r["changed_inertials"]:
-            lines.append(f"### {r['robot']} (`{r['file']}`)")
+            lines.append(f"### `{r['file'].split('/robots/')[-1]}`")
             lines.append("")
             lines += [f"- {element}: {message}" for element, message in r["changed_inertials"].items()]
             lines.append("")
     lines += ["## Warnings", ""]
     for r in rows:
         for w in r["warnings"]:
-            lines.append(f"- {r['robot']}: {w}")
+            lines.append(f"- `{r['file'].split('/robots/')[-1]}`: {w}")
     DOCS.write_text("\n".join(lines) + "\n")
     return 0
 

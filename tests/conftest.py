@@ -7,6 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from urdf2mjcf import headless
+
+headless.configure()  # before any test imports mujoco's renderer
+
 DATA = Path(__file__).parent / "data"
 
 

@@ -130,19 +130,25 @@ def check_robot(urdf: Path, out_dir: Path, **options) -> dict:
     import urdf2mjcf
 
     out = out_dir / "robot.xml"
-    report = urdf2mjcf.convert(urdf, out, package_paths=[example_robot_data_share()], use_environment=False, **options)
+    report = urdf2mjcf.convert(
+        urdf, out, package_paths=[example_robot_data_share()], use_environment=False, **options
+    )
     model = report.model
     summary = {
         "robot": urdf.stem,
         "file": str(urdf.relative_to(example_robot_data_share())),
         "links": len(model.robot.links),
-        "changed_inertials": {n.element: n.message for n in report.notes if n.kind in ("repaired", "estimated")},
+        "changed_inertials": {
+            n.element: n.message for n in report.notes if n.kind in ("repaired", "estimated")
+        },
         "warnings": [f"{n.element}: {n.message}" for n in report.warnings],
         "decomposed": len(report.decomposed) + len(report.cached),
     }
     if not model.robot.links:
         m = mujoco.MjModel.from_xml_path(str(out))
-        summary.update(bodies=m.nbody - 1, dofs=m.nv, frames=0, pos_err=0.0, rot_err=0.0, gravity_rel_err=0.0)
+        summary.update(
+            bodies=m.nbody - 1, dofs=m.nv, frames=0, pos_err=0.0, rot_err=0.0, gravity_rel_err=0.0
+        )
         return summary
     joints = model.robot.joint_map
     mimics = {  # as emitted: a mimic involving a fixed joint is ignored with a warning

@@ -28,7 +28,9 @@ def test_corpus_has_all_69_urdfs():
 def test_robot_converts_and_matches_pinocchio(urdf, tmp_path):
     result = check_robot(urdf, tmp_path)
     assert (tmp_path / "robot.xml").is_file() and (tmp_path / "scene.xml").is_file()
-    assert result["bodies"] == result["links"] - (1 if result["links"] and _has_world_root(urdf) else 0)
+    assert result["bodies"] == result["links"] - (
+        1 if result["links"] and _has_world_root(urdf) else 0
+    )
     assert result["pos_err"] < 1e-9
     assert result["rot_err"] < 1e-9
     assert result["gravity_rel_err"] < 1e-6
@@ -40,4 +42,7 @@ def _has_world_root(urdf) -> bool:
 
     root = etree.parse(str(urdf)).getroot()
     children = {j.find("child").get("link") for j in root.findall("joint")}
-    return any(link.get("name") == "world" and link.get("name") not in children for link in root.findall("link"))
+    return any(
+        link.get("name") == "world" and link.get("name") not in children
+        for link in root.findall("link")
+    )

@@ -10,7 +10,19 @@ from pathlib import Path
 from . import output as out
 from .errors import OutputError
 from .ir import Model
-from .passes import collision, emit, inertia, meshes, parse, scene, validate, xacro
+from .passes import (
+    actuators,
+    collision,
+    emit,
+    extension,
+    inertia,
+    meshes,
+    parse,
+    scene,
+    sensors,
+    validate,
+    xacro,
+)
 from .report import Report
 
 log = logging.getLogger(__name__)
@@ -24,7 +36,10 @@ class ConvertOptions:
     meshes: meshes.MeshConfig = field(default_factory=meshes.MeshConfig)
     collision: collision.CollisionConfig = field(default_factory=collision.CollisionConfig)
     inertia: inertia.InertiaConfig = field(default_factory=inertia.InertiaConfig)
+    actuators: actuators.ActuatorConfig = field(default_factory=actuators.ActuatorConfig)
+    sensors: sensors.SensorConfig = field(default_factory=sensors.SensorConfig)
     emit: emit.EmitConfig = field(default_factory=emit.EmitConfig)
+    extension: extension.ExtensionConfig = field(default_factory=extension.ExtensionConfig)
     validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
     scene: bool = True
     """Also write ``scene.xml`` (floor, light, sky) beside the robot."""
@@ -46,6 +61,10 @@ def make_options(
     progress: Callable[[int, int, str], None] | None = None,
     strict: bool = False,
     max_faces: int = 200_000,
+    actuator_config: str | Path | None = None,
+    gravcomp: bool = False,
+    joint_sensors: bool = True,
+    mujoco_extension: bool = True,
     fuse_fixed: bool = False,
     floating_base: bool = False,
     model_name: str | None = None,
@@ -72,9 +91,16 @@ def make_options(
         inertia=inertia.InertiaConfig(
             density=density, link_density=dict(link_density or {}), free_root=floating_base
         ),
+        actuators=actuators.ActuatorConfig(
+            config_file=Path(actuator_config) if actuator_config else None,
+            gravcomp=gravcomp,
+            floating_base=floating_base,
+        ),
+        sensors=sensors.SensorConfig(joint_sensors=joint_sensors),
         emit=emit.EmitConfig(
             fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name
         ),
+        extension=extension.ExtensionConfig(enabled=mujoco_extension, check=validate_model),
         validate=validate.ValidateConfig(enabled=validate_model),
         scene=scene,
         overwrite=overwrite,
@@ -88,7 +114,10 @@ def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.Emit
     model = meshes.run(model, options.meshes)
     model = collision.run(model, options.collision)
     model = inertia.run(model, options.inertia)
+    model = actuators.run(model, options.actuators)
+    model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
+    result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
     return replace(model, notes=model.notes + result.notes), result
 
 

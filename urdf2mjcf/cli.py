@@ -99,6 +99,14 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     help="Where collision geometry comes from.",
 )
 @click.option(
+    "--actuator-config",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="YAML file mapping joint-name patterns to actuators, gains and classes.",
+)
+@click.option("--gravcomp", is_flag=True, help="Gravity compensation on every link a joint moves.")
+@click.option("--no-joint-sensors", is_flag=True, help="No joint sensors for actuated joints.")
+@click.option("--no-mujoco-extension", is_flag=True, help="Ignore <mujoco> elements in the URDF.")
+@click.option(
     "--fuse-fixed",
     is_flag=True,
     help="Merge links on fixed joints into their parent (each leaves a site).",
@@ -147,6 +155,10 @@ def urdf2mjcf_command(
     density,
     link_density,
     collision_source,
+    actuator_config,
+    gravcomp,
+    no_joint_sensors,
+    no_mujoco_extension,
     fuse_fixed,
     floating_base,
     model_name,
@@ -189,6 +201,10 @@ def urdf2mjcf_command(
             progress=progress,
             strict=strict,
             max_faces=max_faces,
+            actuator_config=actuator_config,
+            gravcomp=gravcomp,
+            joint_sensors=not no_joint_sensors,
+            mujoco_extension=not no_mujoco_extension,
             fuse_fixed=fuse_fixed,
             floating_base=floating_base,
             model_name=model_name,

@@ -432,6 +432,12 @@ class Camera:
     """Clip distances from the description, metres (reported; MuJoCo clips globally)."""
 
 
+BODY_SENSORS = frozenset({"force", "torque", "rangefinder", "touch"})
+"""Sensors whose reading depends on the body their site is on: force and torque
+measure the body's subtree, rangefinders skip the body's geoms, touch sensors
+count the body's contacts."""
+
+
 @dataclass(frozen=True)
 class Sensor:
     """One MuJoCo sensor element."""
@@ -490,3 +496,13 @@ class Model:
     cameras: tuple[Camera, ...] = ()
     sensors: tuple[Sensor, ...] = ()
     notes: tuple[Note, ...] = ()
+
+    def sensor_bodies(self) -> frozenset[str]:
+        """Links carrying the site of a :data:`BODY_SENSORS` sensor: merging one
+        into its parent (``fuse_fixed``) would change what the sensor measures."""
+        site_body = {site.name: site.body for site in self.sites}
+        return frozenset(
+            site_body[s.site]
+            for s in self.sensors
+            if s.type in BODY_SENSORS and s.site in site_body
+        )

@@ -125,6 +125,7 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
     for camera in model.cameras:
         cameras.setdefault(camera.body, []).append(camera)
     named_sites = {site.name for site in model.sites}
+    keep = model.sensor_bodies()  # fusing these would change what their sensors read
 
     def make(link: str) -> _Body:
         body = _Body(link)
@@ -141,7 +142,7 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
             child = make(joint.child)
             child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
             child.joint = joint if joint.type != "fixed" else None
-            if cfg.fuse_fixed and joint.type == "fixed":
+            if cfg.fuse_fixed and joint.type == "fixed" and joint.child not in keep:
                 _fuse(body, child)
             else:
                 body.children.append(child)
@@ -308,7 +309,12 @@ def _body_contents(el: etree._Element, body: _Body) -> None:
         _set(el[-1], type=site.type if site.type != "sphere" else None, size=size)
     for cam in body.cameras:
         _set(etree.SubElement(el, "camera"), name=cam.name, **_pose_attrs(cam.pos, cam.quat))
-        _set(el[-1], fovy=cam.fovy, resolution=cam.resolution)
+        _set(
+            el[-1],
+            fovy=cam.fovy,
+            resolution=cam.resolution,
+            output="rgb depth" if cam.depth else None,
+        )
 
 
 def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
@@ -432,6 +438,12 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         inertiafromgeom="false",  # inertials are ours: from the URDF, repaired or estimated
     )
     _set(etree.SubElement(mj, "option"), integrator="implicitfast")
+    if model.cameras:  # offscreen buffers must hold the largest described image
+        width = max(640, *(c.resolution[0] for c in model.cameras))
+        height = max(480, *(c.resolution[1] for c in model.cameras))
+        if (width, height) != (640, 480):
+            visual = etree.SubElement(mj, "visual")
+            _set(etree.SubElement(visual, "global"), offwidth=width, offheight=height)
 
     default = etree.SubElement(mj, "default")
     _set(

@@ -105,7 +105,7 @@ def run(model: Model, cfg: MeshConfig) -> Model:
                 if role == "collision" or cfg.strict_visual or problem.fatal:
                     raise MeshError(str(problem), file=robot.source, element=where)
                 notes.append(Note("warning", where, f"{problem}; visual dropped"))
-                log.warning("%s: %s; visual dropped", where, problem)
+                log.info("%s: %s; visual dropped", where, problem)
 
     out = _Assets(
         {m.name: m for m in model.materials},

@@ -1,0 +1,628 @@
+"""Pass 6b: apply the URDF's ``<mujoco>`` extension elements to the emitted MJCF.
+
+A ``<robot>`` may carry top-level ``<mujoco>`` elements for what URDF cannot
+say (see ``docs/extension.md``). They are applied in document order, each
+child in document order, to the document emit produced:
+
+* ``compiler``, ``option``, ``size``, ``visual``, ``statistic``: attributes
+  merged into the generated element (child elements merged by tag);
+* ``default``: merged as a tree into the top-level default (an existing class
+  is merged into, a new one added);
+* ``asset``, ``contact``, ``equality``, ``tendon``, ``actuator``, ``sensor``:
+  children appended to the section; asset files are resolved like URDF meshes
+  and copied into the asset folder under content-hash names;
+* ``keyframe``: keys appended; a key named like an existing one replaces it;
+* ``worldbody``: children added to the world body; ``body``, ``frame``,
+  ``geom``, ``site``, ``camera``, ``light`` with ``parent="NAME"`` added to
+  the body ``NAME`` (``world`` for the world body);
+* ``override``: attributes of a generated (or earlier added) element, found
+  by tag and name, set or replaced; ``attr=""`` removes one.
+
+Missing sections are created in Menagerie's order. The document is
+re-serialised exactly as emit writes it, so a robot without ``<mujoco>``
+comes out byte-identical. Generated keyframes are re-padded when added
+bodies bring joints of their own. With ``check`` the merged model is compiled
+once by MuJoCo, and an error in content that came from ``<mujoco>`` is
+reported against that content rather than a line of the generated file.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from lxml import etree
+
+from ..assets import content_name
+from ..errors import MeshError, URDFError
+from ..fmt import fmt_vec
+from ..ir import Model, Note
+from ..packages import PackageResolver
+from .emit import EmitResult
+from .meshes import LFS_MAGIC
+
+log = logging.getLogger(__name__)
+
+SECTIONS = (
+    "compiler",
+    "option",
+    "size",
+    "visual",
+    "statistic",
+    "default",
+    "asset",
+    "worldbody",
+    "contact",
+    "equality",
+    "tendon",
+    "actuator",
+    "sensor",
+    "keyframe",
+)
+"""Top-level MJCF sections in the order emit (and Menagerie) writes them."""
+
+MERGED = ("compiler", "option", "size", "visual", "statistic")
+"""Singleton sections: attributes merged, child elements merged by tag."""
+
+APPENDED = ("asset", "contact", "equality", "tendon", "actuator", "sensor")
+"""Sections whose children are appended in document order."""
+
+BODY_LEVEL = ("body", "frame", "geom", "site", "camera", "light")
+"""Elements that may sit directly in ``<mujoco>`` with ``parent="BODY"``."""
+
+ELEMENTS = (*SECTIONS, *BODY_LEVEL, "override")
+"""Everything a ``<mujoco>`` element may contain."""
+
+OVERRIDES: dict[str, tuple[str, tuple[str, ...] | None]] = {
+    "body": ("worldbody", ("body",)),
+    "joint": ("worldbody", ("joint", "freejoint")),
+    "geom": ("worldbody", ("geom",)),
+    "site": ("worldbody", ("site",)),
+    "camera": ("worldbody", ("camera",)),
+    "light": ("worldbody", ("light",)),
+    "mesh": ("asset", ("mesh",)),
+    "material": ("asset", ("material",)),
+    "texture": ("asset", ("texture",)),
+    "hfield": ("asset", ("hfield",)),
+    "skin": ("asset", ("skin",)),
+    "pair": ("contact", ("pair",)),
+    "exclude": ("contact", ("exclude",)),
+    "equality": ("equality", None),
+    "tendon": ("tendon", None),
+    "actuator": ("actuator", None),
+    "sensor": ("sensor", None),
+    "key": ("keyframe", ("key",)),
+}
+"""Override tag -> (section searched, element tags matched; None: any child).
+``equality``, ``tendon``, ``actuator`` and ``sensor`` match every type."""
+
+FILE_ATTRS = ("file", "fileright", "fileleft", "fileup", "filedown", "filefront", "fileback")
+"""Asset attributes naming a file (the last six: cube textures)."""
+
+COMPILER_PATHS = ("meshdir", "texturedir", "assetdir")
+"""Ignored: asset files are copied beside the output and found there."""
+
+COMPILER_FIXED = {
+    "angle": (
+        "radian",
+        "every angle in the generated model is in radians (URDF's unit); "
+        "write angles in <mujoco> content in radians too",
+    ),
+    "autolimits": ("true", 'joint and actuator ranges are written without limited="true"'),
+    "inertiafromgeom": (
+        "false",
+        "inertials come from the URDF (repaired or estimated when missing); "
+        "give bodies you add an <inertial>",
+    ),
+}
+"""Compiler attributes the generated model depends on: (required value, why)."""
+
+_PLURAL = {"body": "bodies", "equality": "equality constraints", "key": "keyframes"}
+
+
+@dataclass(frozen=True)
+class ExtensionConfig:
+    enabled: bool = True
+    """Apply ``<mujoco>`` elements; False ignores them."""
+    resolver: PackageResolver | None = None
+    """Resolves ``package://`` and relative asset files (pass the xacro pass's
+    resolver); None: one built from the source path alone (environment
+    variables and the folders above the source)."""
+    check: bool = True
+    """Compile the merged model once with MuJoCo and report an error in
+    ``<mujoco>`` content against that content."""
+
+
+@dataclass
+class _Context:
+    root: etree._Element
+    source: Path
+    resolver: PackageResolver
+    files: dict[str, bytes]
+    notes: list[Note]
+    origin: dict[etree._Element, str] = field(default_factory=dict)
+    """Element -> the ``<mujoco>`` content it came from (for MuJoCo's errors)."""
+
+    def error(self, message: str, element: str) -> URDFError:
+        return URDFError(message, file=self.source, element=element)
+
+    def section(self, tag: str) -> etree._Element:
+        """The top-level section ``tag``, created in Menagerie's order if missing."""
+        found = self.root.find(tag)
+        if found is not None:
+            return found
+        el = etree.Element(tag)
+        rank = SECTIONS.index(tag)
+        for existing in self.root:
+            if existing.tag in SECTIONS and SECTIONS.index(existing.tag) > rank:
+                existing.addprevious(el)
+                return el
+        self.root.append(el)
+        return el
+
+    @property
+    def worldbody(self) -> etree._Element:
+        return self.section("worldbody")
+
+
+def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
+    extensions = [e for e in model.robot.extensions if e.tag == "mujoco"]
+    if not cfg.enabled or not extensions:
+        return result
+    root = etree.fromstring(result.xml, etree.XMLParser(remove_blank_text=True))
+    source = model.robot.source
+    ctx = _Context(
+        root=root,
+        source=source,
+        resolver=cfg.resolver or PackageResolver(source=source),
+        files=dict(result.files),
+        notes=[],
+    )
+    layout = _joint_layout(root)
+    owned = {key: key.get("qpos") for key in root.iterfind("keyframe/key")}
+    for ext in extensions:
+        _apply(ctx, ext.xml)
+
+    keys = [k for k, q in owned.items() if q is not None and k.get("qpos") == q and _attached(k)]
+    if cfg.check or (keys and _joint_layout(root) != layout):
+        _compile(ctx, keys, layout)
+
+    etree.indent(root, space="  ")
+    xml = etree.tostring(root, encoding="utf-8", xml_declaration=False) + b"\n"
+    return replace(
+        result,
+        xml=xml,
+        files=ctx.files,
+        qpos_home=_home(root, result.qpos_home),
+        notes=result.notes + tuple(ctx.notes),
+    )
+
+
+# -- applying one <mujoco> element -------------------------------------------
+
+
+def _apply(ctx: _Context, text: str) -> None:
+    parser = etree.XMLParser(remove_blank_text=True, remove_comments=True, remove_pis=True)
+    src = etree.fromstring(text.strip(), parser)
+    etree.cleanup_namespaces(src)  # xacro's xmlns must not follow the children
+    if src.attrib:
+        raise ctx.error(f"takes no attributes; found {_names(src.attrib)}", "mujoco")
+    applied: list[str] = []
+    for child in _elements(src):
+        tag = child.tag
+        if tag in MERGED:
+            _merge_singleton(ctx, child)
+        elif tag == "default":
+            _merge_default(ctx, child)
+        elif tag == "asset":
+            _add_assets(ctx, child)
+        elif tag in APPENDED:
+            _append(ctx, child)
+        elif tag == "keyframe":
+            _merge_keys(ctx, child)
+        elif tag == "worldbody":
+            for el in _elements(child):
+                _add_to_body(ctx, ctx.worldbody, el, f"mujoco worldbody {_label(el)}")
+        elif tag in BODY_LEVEL:
+            _add_body_level(ctx, child)
+        elif tag == "override":
+            if child.attrib:
+                raise ctx.error(
+                    f"takes no attributes; found {_names(child.attrib)}", "mujoco override"
+                )
+            for el in _elements(child):
+                _override(ctx, el)
+        else:
+            shown = etree.QName(child).localname
+            raise ctx.error(
+                f"unknown element <{shown}>; valid: {', '.join(ELEMENTS)}", f"mujoco {shown}"
+            )
+        count = len(_elements(child))
+        applied.append(
+            _label(child) if tag in BODY_LEVEL or tag in MERGED or not count else f"{tag} ({count})"
+        )
+    message = "applied " + (", ".join(applied) if applied else "nothing (empty)")
+    ctx.notes.append(Note("info", "mujoco", message))
+    log.debug("%s: mujoco: %s", ctx.source, message)
+
+
+def _elements(el: etree._Element) -> list[etree._Element]:
+    return [c for c in el if isinstance(c.tag, str)]
+
+
+def _label(el: etree._Element) -> str:
+    name = el.get("name") or (el.get("class") if el.tag == "default" else None)
+    return f"{el.tag} '{name}'" if name else str(el.tag)
+
+
+def _names(items: Iterable[str], limit: int = 20) -> str:
+    items = list(items)
+    shown = ", ".join(items[:limit])
+    return shown + (f", ... ({len(items) - limit} more)" if len(items) > limit else "")
+
+
+def _copy(ctx: _Context, el: etree._Element, origin: str) -> etree._Element:
+    new = copy.deepcopy(el)
+    for part in new.iter():
+        ctx.origin[part] = origin
+    return new
+
+
+def _merge_attrs(target: etree._Element, attrs: Iterable[tuple[str, str]]) -> None:
+    """Set or replace attributes; an empty value removes the attribute."""
+    for key, value in attrs:
+        if value == "":
+            target.attrib.pop(key, None)
+        else:
+            target.set(key, value)
+
+
+def _merge_tree(ctx: _Context, target: etree._Element, src: etree._Element, origin: str) -> None:
+    """Attributes merged, children merged into the same-tag child (created if missing)."""
+    _merge_attrs(target, src.items())
+    ctx.origin[target] = origin
+    for child in _elements(src):
+        existing = target.find(child.tag)
+        if existing is None:
+            existing = etree.SubElement(target, child.tag)
+        _merge_tree(ctx, existing, child, origin)
+
+
+def _merge_singleton(ctx: _Context, src: etree._Element) -> None:
+    origin = f"mujoco {src.tag}"
+    if src.tag == "compiler":
+        kept = []
+        for key, value in src.items():
+            if key in COMPILER_PATHS:
+                ctx.notes.append(
+                    Note(
+                        "info",
+                        origin,
+                        f'{key}="{value}" ignored: asset files are copied into the '
+                        "output's asset folder and found there",
+                    )
+                )
+            elif key in COMPILER_FIXED and value != COMPILER_FIXED[key][0]:
+                required, why = COMPILER_FIXED[key]
+                raise ctx.error(
+                    f'{key}="{value}" is not supported; it stays "{required}": {why}', origin
+                )
+            else:
+                kept.append((key, value))
+        src = copy.deepcopy(src)
+        src.attrib.clear()
+        for key, value in kept:
+            src.set(key, value)
+    _merge_tree(ctx, ctx.section(src.tag), src, origin)
+
+
+def _merge_default(ctx: _Context, src: etree._Element) -> None:
+    cls = src.get("class")
+    if cls not in (None, "main"):
+        raise ctx.error(
+            f"the top-level <default> is the model's own (class 'main'); put classes inside "
+            f'it: <default><default class="{cls}">...</default></default>',
+            f"mujoco default class '{cls}'",
+        )
+    top = ctx.section("default")
+    _merge_attrs(top, ((k, v) for k, v in src.items() if k != "class"))
+    _merge_classes(ctx, top, top, src)
+
+
+def _merge_classes(
+    ctx: _Context, top: etree._Element, target: etree._Element, src: etree._Element
+) -> None:
+    """Merge the default tree ``src`` into ``target``; classes are found anywhere under ``top``."""
+    for child in _elements(src):
+        if child.tag == "default":
+            cls = child.get("class")
+            origin = f"mujoco default class '{cls}'"
+            if not cls:
+                raise ctx.error('a nested <default> needs class="NAME"', "mujoco default")
+            existing = top if cls == "main" else _find_class(top, cls)
+            if existing is None:
+                existing = etree.SubElement(target, "default")
+                existing.set("class", cls)
+                ctx.origin[existing] = origin
+            _merge_attrs(existing, ((k, v) for k, v in child.items() if k != "class"))
+            _merge_classes(ctx, top, existing, child)
+            continue
+        origin = f"mujoco default {child.tag}"
+        if target is not top:
+            origin = f"mujoco default class '{target.get('class')}' {child.tag}"
+        existing = target.find(child.tag)
+        if existing is None:
+            existing = etree.Element(child.tag)
+            first_class = target.find("default")
+            if first_class is None:
+                target.append(existing)
+            else:  # element settings before nested classes, as Menagerie writes them
+                first_class.addprevious(existing)
+        _merge_tree(ctx, existing, child, origin)
+
+
+def _find_class(top: etree._Element, cls: str) -> etree._Element | None:
+    return next((d for d in top.iter("default") if d.get("class") == cls), None)
+
+
+def _add_assets(ctx: _Context, src: etree._Element) -> None:
+    section = ctx.section("asset")
+    for child in _elements(src):
+        origin = f"mujoco asset {_label(child)}"
+        el = _copy(ctx, child, origin)
+        if el.get("file") and el.get("name") is None:
+            # MuJoCo names a file asset after its file; keep the name the user knows.
+            attrs = [("name", Path(el.get("file", "")).stem), *el.items()]
+            el.attrib.clear()
+            for key, value in attrs:
+                el.set(key, value)
+            origin = f"mujoco asset {_label(el)}"
+            ctx.origin[el] = origin
+        _copy_files(ctx, el, origin)
+        section.append(el)
+
+
+def _copy_files(ctx: _Context, el: etree._Element, origin: str) -> None:
+    """Resolve the file attributes of an asset element, copy the files, point at the copies."""
+    compiler = ctx.root.find("compiler")
+    attr = "texturedir" if el.tag == "texture" else "meshdir"
+    folder = compiler.get(attr, "") if compiler is not None else ""
+    for key in FILE_ATTRS:
+        uri = el.get(key)
+        if not uri:
+            continue
+        path = ctx.resolver.resolve(uri, element=origin)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            raise MeshError(f"file not found: {path}", file=ctx.source, element=origin) from None
+        except OSError as exc:
+            raise MeshError(f"cannot read {path}: {exc}", file=ctx.source, element=origin) from None
+        if data.startswith(LFS_MAGIC):
+            raise MeshError(
+                f"{path} is a Git LFS pointer, not a file; run 'git lfs pull' in its repository",
+                file=ctx.source,
+                element=origin,
+            )
+        name = content_name(path.stem, data) + path.suffix.lower()
+        ctx.files[f"{folder}/{name}" if folder else name] = data
+        el.set(key, name)
+
+
+def _append(ctx: _Context, src: etree._Element) -> None:
+    section = ctx.section(src.tag)
+    for child in _elements(src):
+        section.append(_copy(ctx, child, f"mujoco {src.tag} {_label(child)}"))
+
+
+def _merge_keys(ctx: _Context, src: etree._Element) -> None:
+    section = ctx.section("keyframe")
+    for child in _elements(src):
+        new = _copy(ctx, child, f"mujoco keyframe {_label(child)}")
+        name = child.get("name")
+        existing = next((k for k in section if name and k.get("name") == name), None)
+        if existing is None:
+            section.append(new)
+        else:  # same place: 'home' stays key 0, the one viewers and our scene start from
+            section.replace(existing, new)
+
+
+def _add_body_level(ctx: _Context, src: etree._Element) -> None:
+    origin = f"mujoco {_label(src)}"
+    parent = src.get("parent")
+    if not parent:
+        raise ctx.error(
+            'needs parent="BODY" naming the body to add it to (a link name, or "world"); '
+            "or put it inside <worldbody>",
+            origin,
+        )
+    el = copy.deepcopy(src)
+    del el.attrib["parent"]
+    _add_to_body(ctx, _find_body(ctx, parent, origin), el, origin)
+
+
+def _find_body(ctx: _Context, name: str, origin: str) -> etree._Element:
+    world = ctx.worldbody
+    if name == "world":
+        return world
+    bodies = [b.get("name") for b in world.iter("body")]
+    for body in world.iter("body"):
+        if body.get("name") == name:
+            return body
+    known = _names(["world", *(b for b in bodies if b)])
+    message = f"parent body '{name}' does not exist; bodies: {known}"
+    site = next((s for s in world.iter("site") if s.get("name") == name), None)
+    if site is not None:  # a link fused into its parent (fuse_fixed) leaves a site
+        holder = site.getparent().get("name") or "world"  # type: ignore[union-attr]
+        message += f"; '{name}' is a site of body '{holder}': add to that body with pos"
+    raise ctx.error(message, origin)
+
+
+def _add_to_body(ctx: _Context, body: etree._Element, el: etree._Element, origin: str) -> None:
+    """Append ``el`` to ``body``: bodies and frames last, other elements before them."""
+    el = _copy(ctx, el, origin)
+    first = next((c for c in body if c.tag in ("body", "frame")), None)
+    if el.tag in ("body", "frame") or first is None:
+        body.append(el)
+    else:
+        first.addprevious(el)
+
+
+def _override(ctx: _Context, src: etree._Element) -> None:
+    tag = src.tag
+    if tag not in OVERRIDES:
+        hint = ""
+        if tag in ("position", "velocity", "motor", "general", "intvelocity", "damper"):
+            hint = "; actuators of every type are overridden as <actuator name=...>"
+        elif tag == "default":
+            hint = "; default classes are changed by merging: <default><default class=...>"
+        raise ctx.error(
+            f"cannot override <{tag}>; valid: {', '.join(OVERRIDES)}{hint}",
+            f"mujoco override {tag}",
+        )
+    name = src.get("name")
+    if not name:
+        raise ctx.error('needs name="..." naming the element to change', f"mujoco override {tag}")
+    origin = f"mujoco override {tag} '{name}'"
+    children = _elements(src)
+    if children:
+        raise ctx.error(
+            f"an override only sets attributes; child <{children[0].tag}> is not allowed "
+            "(add elements with the raw sections or parent=)",
+            origin,
+        )
+    section_tag, tags = OVERRIDES[tag]
+    section = ctx.root.find(section_tag)
+    if section is None:
+        candidates = []
+    elif section_tag == "worldbody":
+        candidates = list(section.iter(*(tags or ())))
+    else:
+        candidates = [c for c in _elements(section) if tags is None or c.tag in tags]
+    target = next((c for c in candidates if c.get("name") == name), None)
+    if target is None:
+        plural = _PLURAL.get(tag, f"{tag}s")
+        names = [n for n in (c.get("name") for c in candidates) if n]
+        known = f"{plural}: {_names(names)}" if names else f"the model has no named {plural}"
+        raise ctx.error(f"no {tag} '{name}' in the model; {known}", origin)
+    attrs = copy.deepcopy(src)
+    del attrs.attrib["name"]
+    if section_tag == "asset":
+        _copy_files(ctx, attrs, origin)
+    _merge_attrs(target, attrs.items())
+    ctx.origin[target] = origin
+
+
+# -- keyframes and MuJoCo's verdict -------------------------------------------
+
+
+def _attached(el: etree._Element) -> bool:
+    return el.getparent() is not None
+
+
+def _joint_layout(root: etree._Element) -> list[tuple[str | None, int]]:
+    """(name, qpos width) of each joint in document order (MuJoCo's order for emit's output)."""
+    world = root.find("worldbody")
+    if world is None:
+        return []
+    out = []
+    for el in world.iter("joint", "freejoint"):
+        kind = "free" if el.tag == "freejoint" else el.get("type", "hinge")
+        out.append((el.get("name"), {"free": 7, "ball": 4}.get(kind, 1)))
+    return out
+
+
+def _compile(ctx: _Context, keys: list[etree._Element], layout: list) -> None:
+    """Compile the merged model without our keyframes; blame ``<mujoco>`` content for
+    an error in it; re-pad our keyframes when joints were added."""
+    import mujoco
+
+    from .validate import _LOCK
+
+    places = [(k, k.getparent(), k.getparent().index(k)) for k in keys]  # type: ignore[union-attr]
+    for key, parent, _ in places:
+        parent.remove(key)
+    etree.indent(ctx.root, space="  ")
+    xml = etree.tostring(ctx.root, encoding="utf-8")
+    error = None
+    with _LOCK:
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(lambda msg: None)  # validate reports warnings
+        try:
+            m = mujoco.MjModel.from_xml_string(xml.decode(), ctx.files)
+        except ValueError as exc:
+            error = str(exc)
+        finally:
+            mujoco.set_mju_user_warning(previous)
+    for key, parent, index in reversed(places):
+        parent.insert(index, key)
+    if error is not None:
+        _blame(ctx, xml, error)
+        log.debug("%s: merged model does not compile: %s", ctx.source, error)
+        return  # not ours to report: validate will
+    widths = dict(layout)
+    for key in keys:
+        values = [float(x) for x in (key.get("qpos") or "").split()]
+        if len(values) != sum(widths.values()) or len(widths) != len(layout):
+            continue
+        old: dict[str, list[float]] = {}
+        pos = 0
+        for name, width in layout:
+            old[name] = values[pos : pos + width]
+            pos += width
+        new: list[float] = []
+        for j in range(m.njnt):
+            adr = int(m.jnt_qposadr[j])
+            width = {0: 7, 1: 4}.get(int(m.jnt_type[j]), 1)
+            kept = old.get(m.joint(j).name)
+            new += (
+                kept
+                if kept is not None and len(kept) == width
+                else m.qpos0[adr : adr + width].tolist()
+            )
+        if new != values:
+            key.set("qpos", fmt_vec(new))
+
+
+def _blame(ctx: _Context, xml: bytes, error: str) -> None:
+    """Raise against the ``<mujoco>`` content MuJoCo's ``error`` points at, if any."""
+    element = None
+    line = re.search(r"\bline (\d+)", error)
+    if line:
+        parsed = etree.fromstring(xml)
+        for mine, theirs in zip(ctx.root.iter(), parsed.iter(), strict=True):
+            if theirs.sourceline == int(line.group(1)):
+                element = mine
+                break
+    else:
+        key = re.search(r"keyframe '([^']+)'", error)
+        if key:
+            element = next(
+                (k for k in ctx.root.iterfind("keyframe/key") if k.get("name") == key.group(1)),
+                None,
+            )
+    if element is None or element not in ctx.origin:
+        return  # generated content: validate reports it
+    detail = error.strip().splitlines()[0]
+    detail = re.sub(r"^(XML Error: )?(Error: )?", "", detail).strip()
+    name = element.get("name")
+    what = f"<{element.tag} name='{name}'>" if name else f"<{element.tag}>"
+    if detail.startswith("repeated name"):
+        detail += " (to change an existing element, use <override>)"
+    if "mass and inertia of moving bodies" in detail:
+        detail += " (inertiafromgeom is false: give the body an <inertial>)"
+    raise ctx.error(f"MuJoCo rejects {what}: {detail}", ctx.origin[element])
+
+
+def _home(root: etree._Element, default: tuple[float, ...]) -> tuple[float, ...]:
+    key = next((k for k in root.iterfind("keyframe/key") if k.get("name") == "home"), None)
+    if key is None or not key.get("qpos"):
+        return default
+    try:
+        return tuple(float(x) for x in key.get("qpos", "").split())
+    except ValueError:
+        return default
