@@ -55,9 +55,9 @@ Position servo, with omega = 2 pi f, f = ``bandwidth_hz`` = 10 Hz:
    stiff enough that the static sag under the robot's own weight,
    tau_g / kp, stays within theta_tol = ``sag_tolerance`` = 0.002 rad
    (``sag_tolerance_linear`` = 1 mm for slides). E is the force limit: a servo
-   saturating at E gains nothing from more stiffness. 0.002 rad is a real
-   arm's figure: a UR10e shoulder (about 180 N m of own weight) gets
-   kp ~ 9e4 N m/rad, where its MuJoCo users choose 1e5.
+   saturating at E gains nothing from more stiffness. For a UR10e
+   shoulder (public link masses: about 130 N m of own weight at full reach)
+   this gives kp ~ 6.5e4 N m/rad; hand-tuned MuJoCo gains for that arm use 1e5.
 2. Stability: the fastest mode of M_r q'' + Kp q = 0 must satisfy
    omega_max * dt <= ``max_omega_dt`` = 1 at the model's timestep (MuJoCo's
    2 ms). MuJoCo integrates the spring explicitly (semi-implicit Euler is
@@ -136,7 +136,7 @@ class ActuatorConfig:
     max_omega_dt: float = 1.0
     """Limit on omega_max * timestep of the coupled servo modes, for default kp."""
     floating_base: bool = False
-    """As emit's: the root link moves freely (changes I_free of every joint)."""
+    """As emit's: the root link moves freely (the coupled modes then include the base)."""
 
     def __post_init__(self) -> None:
         for name in actuator_config.DESIGN_KEYS + ("max_omega_dt",):
@@ -150,7 +150,7 @@ def run(model: Model, cfg: ActuatorConfig) -> Model:
     tags = control_tags.read(robot)
     file = actuator_config.load(cfg.config_file) if cfg.config_file is not None else None
     if file is not None and file.defaults:
-        cfg = replace(cfg, **file.defaults)
+        cfg = replace(cfg, **file.defaults)  # type: ignore[arg-type]  # DESIGN_KEYS: floats
     if not tags.specs and file is None and not cfg.gravcomp:
         return replace(model, notes=model.notes + tags.notes) if tags.notes else model
     notes = list(tags.notes)
@@ -477,15 +477,18 @@ def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSyste
     load: dict[str, float] = {}
     linear: dict[str, bool] = {}
     for name in joints:
-        i = dof(name)
-        if i is None or i not in column:
+        own = dof(name)
+        if own is None or own not in column:
             continue
-        index[name] = column[i]
-        members = np.flatnonzero(coupling[:, column[i]])
-        load[name] = sum(abs(coupling[k, column[i]]) * worst_load(int(k)) for k in members)
-        linear[name] = int(m.jnt_type[m.dof_jntid[i]]) == slide
+        index[name] = col = column[own]
+        members = np.flatnonzero(coupling[:, col])
+        load[name] = sum(abs(coupling[k, col]) * worst_load(int(k)) for k in members)
+        linear[name] = int(m.jnt_type[m.dof_jntid[own]]) == slide
+    reduced = coupling.T @ full @ coupling
+    # A hair of regularisation keeps the Cholesky factor defined for a dof with no inertia.
+    reduced += np.eye(len(reduced)) * 1e-12 * max(float(np.diag(reduced).max(initial=0.0)), 1e-9)
     return ServoSystem(
-        inertia=coupling.T @ full @ coupling,
+        inertia=reduced,
         damping=coupling.T @ np.diag(m.dof_damping) @ coupling,
         index=index,
         load=load,

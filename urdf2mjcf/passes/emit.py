@@ -246,9 +246,15 @@ def _joint_elements(
         if joint.type == "prismatic":
             el.set("type", "slide")
         _set(el, axis=axis, range=rng, **common)
+        actuator = next((a for a in model.actuators if a.joint == joint.name), None)
         effort = joint.limit.effort if joint.limit is not None else None
-        if effort is not None and effort > 0:
+        if actuator is not None and actuator.forcerange is not None:
+            _set(el, actuatorfrcrange=actuator.forcerange)  # a configured limit beats the URDF's
+        elif effort is not None and effort > 0:
             _set(el, actuatorfrcrange=(-effort, effort))
+        if actuator is not None and model.gravcomp:
+            # gravity compensation as the controller's feed-forward, within its force limit
+            el.set("actuatorgravcomp", "true")
         home = 0.0 if rng is None else min(max(0.0, rng[0]), rng[1])
         return [(joint.name, "scalar", home)]
     if joint.type == "floating":
