@@ -99,6 +99,15 @@ def test_actuators_sensors_and_cameras_exist_with_described_names_and_parameters
         assert m.site(frame).id >= 0, "frames are kept as sites"
 
 
+def test_home_keyframe_is_the_described_initial_pose_and_servos_hold_it(converted):
+    m = mujoco.MjModel.from_xml_path(str(converted))
+    key = m.key("home")
+    assert key.qpos[m.joint("shoulder_lift_joint").qposadr[0]] == pytest.approx(0.3)
+    assert key.qpos[m.joint("elbow_joint").qposadr[0]] == pytest.approx(-0.6)
+    assert key.ctrl[m.actuator("shoulder_lift_joint").id] == pytest.approx(0.3)
+    assert key.ctrl[m.actuator("elbow_joint").id] == pytest.approx(-0.6)
+
+
 def test_arm_holds_home_pose_under_gravity_within_1mm_for_5s(converted):
     m, d = _model(converted)
     tool = m.site("tool0").id

@@ -101,6 +101,36 @@ def read(robot: Robot) -> ControlTags:
     return ControlTags(specs, sources, tuple(notes))
 
 
+def initial_positions(robot: Robot) -> dict[str, float]:
+    """Joint name -> ``initial_value`` of its ros2_control position state interface.
+
+    This is how ROS 2 descriptions give the pose a simulated robot starts in
+    (mock_components, gazebo_ros2_control and mujoco_ros2_control read it);
+    emit makes it the ``home`` keyframe.
+    """
+    out: dict[str, float] = {}
+    for ext in robot.extensions:
+        if ext.tag != "ros2_control":
+            continue
+        for jel in _children(_element(ext.xml, robot), "joint"):
+            name = (jel.get("name") or "").strip()
+            for si in _children(jel, "state_interface"):
+                if (si.get("name") or "").strip().lower() != "position":
+                    continue
+                for pel in _children(si, "param"):
+                    if (pel.get("name") or "").strip() == "initial_value":
+                        where = f"ros2_control joint '{name}' initial_value"
+                        try:
+                            value = float(_text(pel))
+                        except ValueError:
+                            raise URDFError(
+                                f"'{_text(pel)}' is not a number", file=robot.source, element=where
+                            ) from None
+                        if name in robot.joint_map:
+                            out.setdefault(name, value)
+    return out
+
+
 def _element(xml: str, robot: Robot) -> etree._Element:
     try:
         return etree.fromstring(xml)

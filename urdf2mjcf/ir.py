@@ -490,6 +490,9 @@ class Model:
     actuators: tuple[Actuator, ...] = ()
     joint_tuning: Mapping[str, JointTuning] = field(default_factory=dict)
     """Joint name -> armature, damping, friction from actuator parameters."""
+    home: Mapping[str, float] = field(default_factory=dict)
+    """Joint name -> position in the ``home`` keyframe (ros2_control ``initial_value``);
+    other joints start at 0 clamped into their range."""
     gravcomp: Mapping[str, float] = field(default_factory=dict)
     """Link name -> gravity compensation (0..1, MuJoCo body ``gravcomp``)."""
     sites: tuple[Site, ...] = ()

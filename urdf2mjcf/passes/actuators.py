@@ -147,6 +147,9 @@ class ActuatorConfig:
 
 def run(model: Model, cfg: ActuatorConfig) -> Model:
     robot = model.robot
+    home = control_tags.initial_positions(robot)
+    if home:  # the described start pose: the home keyframe, and the pose gains are sized at
+        model = replace(model, home={**model.home, **home})
     tags = control_tags.read(robot)
     file = actuator_config.load(cfg.config_file) if cfg.config_file is not None else None
     if file is not None and file.defaults:

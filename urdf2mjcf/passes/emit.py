@@ -400,10 +400,23 @@ def _sensor_section(mj: etree._Element, model: Model) -> None:
         )
 
 
+def _scalar_qpos_index(entries: list) -> list[tuple[int, str]]:
+    """(qpos address, joint name) of the one-number joints, in qpos order."""
+    out, adr = [], 0
+    for name, kind, _home, _body in entries:
+        if kind == "scalar":
+            out.append((adr, name))
+        adr += {"free": 7, "ball": 4}.get(kind, 1)
+    return out
+
+
 def _home_qpos(entries: list, model: Model) -> tuple[float, ...]:
     """Joint zero clamped into its range; mimic followers satisfy their constraint."""
     values: dict[str, float] = {name: home for name, kind, home, _ in entries if kind == "scalar"}
+    values.update({k: v for k, v in model.home.items() if k in values})
     for joint in model.robot.joints:
+        if joint.name in model.home:
+            continue
         if joint.mimic is not None and joint.name in values and joint.mimic.joint in values:
             values[joint.name] = (
                 joint.mimic.multiplier * values[joint.mimic.joint] + joint.mimic.offset
@@ -525,7 +538,13 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
 
     qpos = _home_qpos(entries, model)
     if qpos:
-        _set(etree.SubElement(etree.SubElement(mj, "keyframe"), "key"), name="home", qpos=qpos)
+        key = _set(
+            etree.SubElement(etree.SubElement(mj, "keyframe"), "key"), name="home", qpos=qpos
+        )
+        if model.actuators:  # servos hold the home pose from the first step
+            at = {name: qpos[i] for i, name in _scalar_qpos_index(entries)}
+            ctrl = [at.get(a.joint, 0.0) if a.kind == "position" else 0.0 for a in model.actuators]
+            _set(key, ctrl=ctrl)
 
     etree.indent(mj, space="  ")
     xml = etree.tostring(mj, encoding="utf-8", xml_declaration=False) + b"\n"
