@@ -241,7 +241,11 @@ def test_camera_renders_rgb_and_depth_and_a_known_object_lands_where_intrinsics_
     rgb = _render(m, d, "camera_optical_frame", depth=False)
     depth = _render(m, d, "camera_optical_frame", depth=True)
     assert rgb.shape == (240, 320, 3) and depth.shape == (240, 320)
-    red = (rgb[..., 0] > 80) & (rgb[..., 0] > 3 * rgb[..., 1].astype(int)) & (rgb[..., 0] > 3 * rgb[..., 2].astype(int))
+    red = (
+        (rgb[..., 0] > 80)
+        & (rgb[..., 0] > 3 * rgb[..., 1].astype(int))
+        & (rgb[..., 0] > 3 * rgb[..., 2].astype(int))
+    )
     assert red.sum() > 20, "the ball is in view"
     vs, us = np.nonzero(red)
     fovy = math.radians(m.camera("camera_optical_frame").fovy[0])

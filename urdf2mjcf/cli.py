@@ -250,3 +250,87 @@ def run_command(command: click.Command, args: list[str] | None = None) -> None:
 
 def urdf2mjcf_main() -> None:
     run_command(urdf2mjcf_command)
+
+
+@click.command("make-facility", context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("recipe", required=False, type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Output folder (default: build/<recipe name> under the facility root).",
+)
+@click.option(
+    "--set",
+    "sets",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="Change the recipe: a flag (hatch_4040=true) or a dotted field (jitter.ctb_yaw=0.2).",
+)
+@click.option(
+    "--seed", type=int, help="Seed for the recipe's pose uncertainty (none: nominal poses)."
+)
+@click.option(
+    "--root",
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Facility root (holds facility/ and recipes/); default: found from the current folder.",
+)
+@click.option("--no-components", is_flag=True, help="Do not also compile each asset on its own.")
+@click.option(
+    "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
+)
+@click.option(
+    "--cache-dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Where convex decompositions are cached.",
+)
+@click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+def make_facility_command(
+    recipe, output, sets, seed, root, no_components, jobs, cache_dir, verbose, quiet
+):
+    """Build a simulated facility from a RECIPE (default: recipes/imetro.yaml).
+
+    Writes scene.xml (the whole facility), components/, assets/ and facility.json.
+    """
+    from .facility import build as facility_build
+    from .facility.recipe import load_recipe
+
+    _configure_logging(verbose, quiet)
+    progress = _Progress(enabled=not quiet and sys.stderr.isatty())
+    try:
+        root = facility_build.find_root(root)
+        recipe_path = Path(recipe) if recipe else root / "recipes" / "imetro.yaml"
+        parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"))
+        out = Path(output) if output else root / "build" / parsed.name
+        report = facility_build.build_facility(
+            parsed,
+            out,
+            root=root,
+            seed=seed,
+            components=not no_components,
+            workers=jobs,
+            cache_dir=cache_dir,
+            progress=progress,
+        )
+    except ConversionError as exc:
+        progress.close()
+        logging.getLogger(__name__).debug("facility build failed", exc_info=True)
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    progress.close()
+    if not quiet:
+        for note in report.conversion.notes:
+            if note.kind in ("warning", "repaired", "decimated") or verbose:
+                click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
+        counts = report.manifest["counts"]
+        click.echo(f"wrote {report.scene}")
+        click.echo(
+            f"{parsed.name}: {counts['bodies'] - 1} bodies, {counts['joints']} joints, "
+            f"{counts['actuators']} actuators, {counts['sensors']} sensors, "
+            f"{counts['cameras']} cameras" + (f", seed {seed}" if seed is not None else "")
+        )
+
+
+def make_facility_main() -> None:
+    run_command(make_facility_command)

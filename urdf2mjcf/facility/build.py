@@ -1,0 +1,214 @@
+"""``make-facility``: recipe -> xacro arguments -> one compiled facility.
+
+The whole facility is one URDF (the recipe's top-level xacro with its flags
+and poses as xacro arguments), compiled by :func:`urdf2mjcf.convert` into
+``scene.xml``; each asset in it is also compiled on its own into
+``components/<asset>/`` for working on one mockup at a time. The output
+folder is staged beside the target and swapped in whole, so a failed build
+leaves the previous one intact.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .. import api
+from ..errors import InputError, OutputError
+from .jitter import jittered
+from .manifest import manifest
+from .recipe import Pose2D, Recipe
+
+log = logging.getLogger(__name__)
+
+PACKAGE_DIRS = ("facility/robots", "facility/mockups", "facility/worlds")
+"""Folders whose sub-folders are packages (relative to the facility root)."""
+NAMED_PACKAGES = {"facility_common": "facility/common", "facility_meshes": "meshes"}
+
+
+@dataclass(frozen=True)
+class Component:
+    """An asset the facility may contain, and how to compile it on its own."""
+
+    asset: str
+    """Package folder name under facility/robots or facility/mockups."""
+    standalone: str
+    """Standalone xacro, relative to the facility root."""
+    flag: str | None
+    """The recipe flag that includes it (None: always, when it has a placement)."""
+
+
+COMPONENTS: dict[str, Component] = {
+    "robot": Component(
+        "imetro_robot", "facility/robots/imetro_robot/urdf/imetro_robot.urdf.xacro", "robot"
+    ),
+    "trainer": Component(
+        "stowage_unit", "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro", None
+    ),
+    "second_trainer": Component(
+        "stowage_unit",
+        "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro",
+        "second_trainer",
+    ),
+    "hatch_4060": Component("hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4060"),
+    "hatch_4040": Component("hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4040"),
+    "express_rack": Component(
+        "express_rack", "facility/mockups/express_rack/urdf/express_rack.urdf.xacro", "express_rack"
+    ),
+    "shelf": Component("shelf", "facility/mockups/shelf/urdf/shelf.urdf.xacro", "shelf"),
+    "ctb": Component("ctb", "facility/mockups/ctb/urdf/ctb.urdf.xacro", None),
+}
+
+
+@dataclass(frozen=True)
+class FacilityReport:
+    output: Path
+    scene: Path
+    manifest: dict
+    conversion: api.Report
+    components: dict[str, Path] = field(default_factory=dict)
+
+
+def find_root(start: Path | None = None) -> Path:
+    """The nearest folder at or above ``start`` holding facility/ and recipes/."""
+    here = Path(start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        if (folder / "facility").is_dir() and (folder / "recipes").is_dir():
+            return folder
+    raise InputError(
+        "no facility root (a folder with facility/ and recipes/) here or above; pass --root",
+        file=here,
+    )
+
+
+def _flag_text(value: object) -> str:
+    return ("true" if value else "false") if isinstance(value, bool) else str(value)
+
+
+def _enabled(recipe: Recipe, name: str) -> bool:
+    comp = COMPONENTS.get(name)
+    flag = comp.flag if comp else None
+    if flag is None:
+        return True
+    value = recipe.flags.get(flag, False)
+    return value not in (False, "false", "none", None, 0)
+
+
+def xacro_args(recipe: Recipe, placements: dict[str, Pose2D], ctb: Pose2D | None) -> dict[str, str]:
+    """The top-level xacro's arguments: flags, every pose, simulation options."""
+    args = {k: _flag_text(v) for k, v in recipe.flags.items()}
+    poses = dict(placements)
+    if ctb is not None:
+        poses["ctb"] = ctb
+    for name, pose in poses.items():
+        for axis, value in zip("xyz", pose.xyz, strict=True):
+            args[f"{name}_{axis}"] = repr(float(value))
+        args[f"{name}_yaw"] = repr(float(pose.yaw))
+    for key, value in recipe.simulation.items():
+        args[key] = _flag_text(value)
+    return args
+
+
+def _convert_options(
+    root: Path, recipe: Recipe, *, workers: int, cache_dir: Path | None, progress
+) -> dict:
+    return {
+        "package_paths": [root / d for d in PACKAGE_DIRS],
+        "packages": {name: root / d for name, d in NAMED_PACKAGES.items()},
+        "use_environment": False,
+        "actuator_config": root / recipe.actuator_config if recipe.actuator_config else None,
+        "gravcomp": recipe.gravcomp,
+        "workers": workers,
+        "cache_dir": cache_dir,
+        "progress": progress,
+        "overwrite": True,
+    }
+
+
+def build_facility(
+    recipe: Recipe,
+    output: Path,
+    *,
+    root: Path,
+    seed: int | None = None,
+    components: bool = True,
+    workers: int = 0,
+    cache_dir: Path | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> FacilityReport:
+    """Compile ``recipe`` into the folder ``output`` (replaced whole on success)."""
+    root = root.resolve()
+    top = root / recipe.xacro
+    if not top.is_file():
+        raise InputError(
+            f"top-level xacro '{recipe.xacro}' does not exist",
+            file=recipe.path or top,
+            element="xacro",
+        )
+    placements = {n: p for n, p in recipe.placements.items() if _enabled(recipe, n)}
+    moved, ctb, offsets = jittered(placements, recipe.ctb, recipe.jitter, seed)
+    args = xacro_args(recipe, moved, ctb)
+    options = _convert_options(
+        root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
+    )
+
+    output = Path(output)
+    if output.exists() and not output.is_dir():
+        raise OutputError("exists and is not a folder", file=output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{output.name}-", dir=output.parent))
+    try:
+        report = api.convert(top, stage / "scene.xml", args=args, scene=False, **options)
+        built: dict[str, Path] = {}
+        if components:
+            assets = sorted(
+                {
+                    COMPONENTS[n].asset: COMPONENTS[n] for n in (*moved, "ctb") if n in COMPONENTS
+                }.items()
+            )
+            for asset, comp in assets:
+                src = root / comp.standalone
+                if not src.is_file():
+                    log.info("no standalone description for %s (%s)", asset, comp.standalone)
+                    continue
+                target = stage / "components" / asset / f"{asset}.xml"
+                comp_options = dict(options)
+                if asset != "imetro_robot":
+                    comp_options["actuator_config"] = None
+                api.convert(src, target, **comp_options)
+                built[asset] = Path("components") / asset / f"{asset}.xml"
+        data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built)
+        (stage / "facility.json").write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+        _swap_in(stage, output)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    return FacilityReport(
+        output=output,
+        scene=output / "scene.xml",
+        manifest=data,
+        conversion=report,
+        components={k: output / v for k, v in built.items()},
+    )
+
+
+def _swap_in(stage: Path, output: Path) -> None:
+    """Replace the folder ``output`` by ``stage`` with two renames."""
+    old = None
+    if output.exists():
+        old = output.with_name(f".{output.name}-old-{os.getpid()}")
+        os.replace(output, old)
+    os.replace(stage, output)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def yaw_quat(yaw: float) -> tuple[float, float, float, float]:
+    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))

@@ -1,0 +1,118 @@
+"""``facility.json``: what a built facility contains, with stable names.
+
+Read back from the compiled model itself (MuJoCo's names are the truth a
+runner will use), plus the recipe, the seed and the poses it produced. No
+timestamps or absolute paths: two builds with the same seed are identical.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .recipe import Pose2D, Recipe
+
+_JOINT_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
+
+
+def _pose(p: Pose2D) -> dict:
+    return {"xyz": list(p.xyz), "yaw": p.yaw}
+
+
+def _name(m, objtype, i: int) -> str:
+    import mujoco
+
+    return mujoco.mj_id2name(m, objtype, i) or ""
+
+
+def manifest(
+    scene: Path,
+    recipe: Recipe,
+    root: Path,
+    seed: int | None,
+    placements: dict[str, Pose2D],
+    ctb: Pose2D | None,
+    offsets: dict[str, dict[str, float]],
+    components: dict[str, Path],
+) -> dict:
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(scene))
+    obj = mujoco.mjtObj
+    joints = [
+        {
+            "name": _name(m, obj.mjOBJ_JOINT, j),
+            "type": _JOINT_TYPES[int(m.jnt_type[j])],
+            "body": _name(m, obj.mjOBJ_BODY, int(m.jnt_bodyid[j])),
+            "range": [float(v) for v in m.jnt_range[j]] if m.jnt_limited[j] else None,
+        }
+        for j in range(m.njnt)
+    ]
+    actuators = []
+    for a in range(m.nu):
+        kind = (
+            "position"
+            if m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+            and m.actuator_biasprm[a, 1] != 0
+            else ("velocity" if m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE else "motor")
+        )
+        actuators.append(
+            {
+                "name": _name(m, obj.mjOBJ_ACTUATOR, a),
+                "joint": _name(m, obj.mjOBJ_JOINT, int(m.actuator_trnid[a, 0])),
+                "type": kind,
+                "ctrlrange": [float(v) for v in m.actuator_ctrlrange[a]]
+                if m.actuator_ctrllimited[a]
+                else None,
+            }
+        )
+    sensors = [
+        {
+            "name": _name(m, obj.mjOBJ_SENSOR, s),
+            "type": mujoco.mjtSensor(int(m.sensor_type[s])).name[len("mjSENS_") :].lower(),
+            "dim": int(m.sensor_dim[s]),
+        }
+        for s in range(m.nsensor)
+    ]
+    cameras = [
+        {
+            "name": _name(m, obj.mjOBJ_CAMERA, c),
+            "body": _name(m, obj.mjOBJ_BODY, int(m.cam_bodyid[c])),
+            "resolution": [int(v) for v in m.cam_resolution[c]],
+            "fovy": float(m.cam_fovy[c]),
+        }
+        for c in range(m.ncam)
+    ]
+    recipe_file = None
+    if recipe.path is not None:
+        try:
+            recipe_file = str(Path(recipe.path).resolve().relative_to(root))
+        except ValueError:
+            recipe_file = Path(recipe.path).name
+    return {
+        "recipe": recipe.name,
+        "recipe_file": recipe_file,
+        "xacro": recipe.xacro,
+        "seed": seed,
+        "flags": dict(recipe.flags),
+        "jitter": dict(recipe.jitter) if seed is not None else {},
+        "offsets": offsets,
+        "components": {name: {"pose": _pose(p)} for name, p in sorted(placements.items())},
+        "ctb": {"pose": _pose(ctb)} if ctb is not None else None,
+        "component_mjcf": {k: str(v) for k, v in sorted(components.items())},
+        "simulation": {
+            "timestep": float(m.opt.timestep),
+            "integrator": mujoco.mjtIntegrator(int(m.opt.integrator)).name[len("mjINT_") :].lower(),
+        },
+        "counts": {
+            "bodies": int(m.nbody),
+            "joints": int(m.njnt),
+            "dofs": int(m.nv),
+            "actuators": int(m.nu),
+            "sensors": int(m.nsensor),
+            "cameras": int(m.ncam),
+        },
+        "joints": joints,
+        "actuators": actuators,
+        "sensors": sensors,
+        "cameras": cameras,
+    }

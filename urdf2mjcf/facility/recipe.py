@@ -1,0 +1,182 @@
+"""Facility recipes: which top-level xacro, its flags, where things stand,
+how uncertain their poses are, and how to simulate.
+
+A recipe is a YAML file (see ``recipes/imetro.yaml``)::
+
+    name: imetro
+    xacro: facility/worlds/imetro/urdf/imetro_facility.urdf.xacro
+    flags: {robot: imetro, hatch_4060: true, hatch_4040: false, ...}
+    placements:                       # component -> pose on the floor
+      trainer: {xyz: [-1.2, 1.6, 0], yaw: -1.5708}
+    ctb: {xyz: [0.8, 0.8, 0.13], yaw: 1.5708}
+    jitter:                           # uniform +- ranges, applied with --seed
+      position: 0.02                  # m, mockups
+      yaw: 0.0175                     # rad, mockups
+      ctb_position: 0.05
+      ctb_yaw: 0.2618
+    simulation: {timestep: 0.002, integrator: implicitfast, solver: Newton}
+    actuator_config: facility/robots/imetro_robot/config/actuators.yaml
+
+Every path is relative to the facility root (the folder holding
+``facility/`` and ``recipes/``). ``--set KEY=VALUE`` edits a recipe: a bare
+key is a flag, a dotted key any field (``jitter.ctb_yaw=0.1``).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import InputError
+
+TOP_KEYS = (
+    "name",
+    "description",
+    "xacro",
+    "flags",
+    "placements",
+    "ctb",
+    "jitter",
+    "simulation",
+    "actuator_config",
+    "gravcomp",
+)
+JITTER_KEYS = ("position", "yaw", "ctb_position", "ctb_yaw")
+SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
+
+
+@dataclass(frozen=True)
+class Pose2D:
+    """A pose on the floor: position (m) and yaw about +z (rad)."""
+
+    xyz: tuple[float, float, float]
+    yaw: float = 0.0
+
+
+@dataclass(frozen=True)
+class Recipe:
+    name: str
+    path: Path | None
+    """The YAML file (None for a recipe built in code)."""
+    xacro: str
+    flags: Mapping[str, Any]
+    placements: Mapping[str, Pose2D]
+    ctb: Pose2D | None
+    jitter: Mapping[str, float] = field(default_factory=dict)
+    simulation: Mapping[str, Any] = field(default_factory=dict)
+    actuator_config: str | None = None
+    gravcomp: bool = False
+    description: str = ""
+
+
+def _fail(path: Path | None, key: str, message: str) -> InputError:
+    return InputError(message, file=path or "recipe", element=key)
+
+
+def _number(value: Any, path: Path | None, key: str) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise _fail(path, key, f"'{value}' is not a number") from None
+    if not math.isfinite(x):
+        raise _fail(path, key, f"'{value}' is not finite")
+    return x
+
+
+def _pose(value: Any, path: Path | None, key: str) -> Pose2D:
+    if not isinstance(value, Mapping) or "xyz" not in value:
+        raise _fail(path, key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
+    unknown = set(value) - {"xyz", "yaw"}
+    if unknown:
+        raise _fail(path, key, f"unknown key(s) {', '.join(sorted(unknown))}; valid: xyz, yaw")
+    xyz = value["xyz"]
+    if not isinstance(xyz, (list, tuple)) or len(xyz) != 3:
+        raise _fail(path, f"{key}.xyz", "needs three numbers")
+    return Pose2D(
+        tuple(_number(v, path, f"{key}.xyz") for v in xyz),  # type: ignore[arg-type]
+        _number(value.get("yaw", 0.0), path, f"{key}.yaw"),
+    )
+
+
+def _parse_scalar(text: str) -> Any:
+    """A --set value as YAML would read it (true, 0.5, [1, 2], text)."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def apply_sets(data: dict, sets: Mapping[str, str], path: Path | None) -> dict:
+    """``--set`` edits: bare keys are flags, dotted keys address any field."""
+    data = copy.deepcopy(data)
+    for key, text in sets.items():
+        value = _parse_scalar(text)
+        parts = key.split(".")
+        if len(parts) == 1:
+            parts = ["flags", key]
+        target = data
+        for part in parts[:-1]:
+            target = target.setdefault(part, {})
+            if not isinstance(target, dict):
+                raise _fail(path, key, f"'{part}' is not a section")
+        target[parts[-1]] = value
+    return data
+
+
+def parse_recipe(data: Any, path: Path | None) -> Recipe:
+    if not isinstance(data, Mapping):
+        raise _fail(path, "recipe", "a recipe is a mapping of keys to values")
+    unknown = set(data) - set(TOP_KEYS)
+    if unknown:
+        raise _fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(TOP_KEYS)}")
+    for required in ("name", "xacro"):
+        if not data.get(required):
+            raise _fail(path, required, "is required")
+    flags = dict(data.get("flags") or {})
+    placements = {
+        name: _pose(value, path, f"placements.{name}")
+        for name, value in (data.get("placements") or {}).items()
+    }
+    ctb = _pose(data["ctb"], path, "ctb") if data.get("ctb") else None
+    jitter = {}
+    for key, value in (data.get("jitter") or {}).items():
+        if key not in JITTER_KEYS:
+            raise _fail(path, f"jitter.{key}", f"unknown key; valid: {', '.join(JITTER_KEYS)}")
+        jitter[key] = _number(value, path, f"jitter.{key}")
+        if jitter[key] < 0:
+            raise _fail(path, f"jitter.{key}", "a jitter range is >= 0")
+    simulation = dict(data.get("simulation") or {})
+    for key in simulation:
+        if key not in SIMULATION_KEYS:
+            raise _fail(
+                path, f"simulation.{key}", f"unknown key; valid: {', '.join(SIMULATION_KEYS)}"
+            )
+    return Recipe(
+        name=str(data["name"]),
+        path=path,
+        xacro=str(data["xacro"]),
+        flags=flags,
+        placements=placements,
+        ctb=ctb,
+        jitter=jitter,
+        simulation=simulation,
+        actuator_config=data.get("actuator_config"),
+        gravcomp=bool(data.get("gravcomp", False)),
+        description=str(data.get("description", "")),
+    )
+
+
+def load_recipe(path: Path, sets: Mapping[str, str] | None = None) -> Recipe:
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise InputError(f"cannot read recipe: {exc.strerror}", file=path) from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"not valid YAML: {exc}".splitlines()[0], file=path) from None
+    return parse_recipe(apply_sets(data or {}, sets or {}, path), Path(path))
