@@ -49,6 +49,11 @@ TOP_KEYS = (
 )
 JITTER_KEYS = ("position", "yaw", "ctb_position", "ctb_yaw")
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
+SIMULATION_CHOICES = {
+    "integrator": ("Euler", "RK4", "implicit", "implicitfast"),
+    "solver": ("PGS", "CG", "Newton"),
+    "cone": ("pyramidal", "elliptic"),
+}
 
 
 @dataclass(frozen=True)
@@ -152,11 +157,16 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
         if jitter[key] < 0:
             raise _fail(path, f"jitter.{key}", "a jitter range is >= 0")
     simulation = dict(data.get("simulation") or {})
-    for key in simulation:
+    for key, value in simulation.items():
+        where = f"simulation.{key}"
         if key not in SIMULATION_KEYS:
-            raise _fail(
-                path, f"simulation.{key}", f"unknown key; valid: {', '.join(SIMULATION_KEYS)}"
-            )
+            raise _fail(path, where, f"unknown key; valid: {', '.join(SIMULATION_KEYS)}")
+        if key in SIMULATION_CHOICES:
+            if str(value) not in SIMULATION_CHOICES[key]:
+                valid = ", ".join(SIMULATION_CHOICES[key])
+                raise _fail(path, where, f"'{value}' is not one of {valid}")
+        elif _number(value, path, where) <= 0:
+            raise _fail(path, where, "must be > 0")
     return Recipe(
         name=str(data["name"]),
         path=path,
