@@ -537,3 +537,23 @@ def test_hull_and_part_meshes_compile_in_mujoco(build, cfg, tmp_path):
     assert m.ngeom == sum(len(v) for v in out.collision_geoms.values())
     total = sum(m.mesh_vertnum)
     assert total > 0 and np.all(np.isfinite(d.qpos))
+
+
+def test_collision_elements_keep_their_urdf_names_when_unique(tmp_path):
+    from urdf2mjcf.passes import parse, xacro
+
+    urdf = tmp_path / "named.urdf"
+    urdf.write_text(
+        """<robot name="named">
+  <link name="a">
+    <collision name="bumper"><geometry><box size="0.1 0.1 0.1"/></geometry></collision>
+    <collision name="collision"><geometry><sphere radius="0.05"/></geometry></collision>
+  </link>
+  <joint name="j" type="fixed"><parent link="a"/><child link="b"/></joint>
+  <link name="b"><collision name="collision"><geometry><sphere radius="0.05"/></geometry></collision></link>
+</robot>"""
+    )
+    model = parse.run(xacro.run(urdf, xacro.XacroConfig(use_environment=False)))
+    out = collision.run(model, CollisionConfig(use_cache=False))
+    assert [g.name for g in out.collision_geoms["a"]] == ["bumper", "a_collision_1"]
+    assert [g.name for g in out.collision_geoms["b"]] == ["b_collision"], "a name used twice is not a geom name"

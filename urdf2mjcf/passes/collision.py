@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+from collections import Counter
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass
@@ -153,26 +154,32 @@ def run(model: Model, cfg: CollisionConfig) -> Model:
     plans = _plan_meshes(model, cfg, elements, notes)
 
     new_assets: list[MeshAsset] = []
-    geoms_by_link: dict[str, list[Geom]] = {}
+    geoms_by_link: dict[str, list[tuple[Geom, str | None, int]]] = {}
     for link in links:
-        geoms: list[Geom] = []
+        geoms: list[tuple[Geom, str | None, int]] = []
         for el in elements[link.name]:
             geometry = el.geometry
             if not isinstance(geometry, MeshRef):
-                geoms.append(primitive_geom("collision", el.origin, geometry))
-                continue
-            plan = plans.get((geometry.path, geometry.scale))  # type: ignore[arg-type]
-            if plan is None:  # a visual mesh whose file was missing
-                continue
-            geoms.extend(_plan_geoms(plan, el, new_assets))
+                pieces = [primitive_geom("collision", el.origin, geometry)]
+            else:
+                plan = plans.get((geometry.path, geometry.scale))  # type: ignore[arg-type]
+                if plan is None:  # a visual mesh whose file was missing
+                    continue
+                pieces = _plan_geoms(plan, el, new_assets)
+            geoms += [(g, el.name, len(pieces)) for g in pieces]
         geoms_by_link[link.name] = geoms
 
     mesh_assets, renamed = merge_assets(model.mesh_assets, new_assets)
     collision_geoms: dict[str, tuple[Geom, ...]] = {}
+    unique = _unique_element_names(elements)
     for name, geoms in geoms_by_link.items():
-        named = []
-        for k, g in enumerate(geoms):
-            geom_name = f"{name}_collision" if len(geoms) == 1 else f"{name}_collision_{k}"
+        named, seen = [], Counter[str]()
+        for k, (g, element_name, count) in enumerate(geoms):
+            if element_name in unique:  # the description's own name, where it is unambiguous
+                geom_name = element_name if count == 1 else f"{element_name}_{seen[element_name]}"
+                seen[element_name] += 1
+            else:
+                geom_name = f"{name}_collision" if len(geoms) == 1 else f"{name}_collision_{k}"
             mesh = renamed[g.mesh] if g.mesh is not None else None
             named.append(dataclasses.replace(g, name=geom_name, mesh=mesh))
         collision_geoms[name] = tuple(named)
@@ -183,6 +190,14 @@ def run(model: Model, cfg: CollisionConfig) -> Model:
         mesh_assets=mesh_assets,
         notes=model.notes + tuple(notes),
     )
+
+
+def _unique_element_names(elements: dict[str, tuple[Collision | Visual, ...]]) -> set[str]:
+    """Element names given once in the whole robot (``<collision name="collision">``
+    in every link is common in the wild and cannot name a geom)."""
+    counts = Counter(el.name for els in elements.values() for el in els if el.name)
+    link_names = set(elements)
+    return {n for n, c in counts.items() if c == 1 and n not in link_names}
 
 
 def _plan_geoms(plan: _Plan, el: Collision | Visual, new_assets: list[MeshAsset]) -> list[Geom]:
