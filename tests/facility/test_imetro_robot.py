@@ -563,7 +563,7 @@ def test_finger_pads_grip_and_meet_at_the_grasp_frame(model):
     for opening in (0.0, 0.0125, 0.025):
         _pose(m, d, {"finger_1_joint": opening})
         p_grasp, r_grasp = _frame(d, m, "grasp_frame")
-        pads = [m.geom(f"finger_{n}_link_collision_1") for n in (1, 2)]
+        pads = [m.geom(f"finger_{n}_pad") for n in (1, 2)]
         centres = [d.geom_xpos[p.id] for p in pads]
         np.testing.assert_allclose((centres[0] + centres[1]) / 2, p_grasp, atol=1e-9)
         gap = np.linalg.norm(centres[0] - centres[1]) - 2 * pads[0].size[1]
@@ -577,6 +577,8 @@ def test_finger_pads_grip_and_meet_at_the_grasp_frame(model):
     for pad in pads:
         assert 2 * pad.size[0] > 0.03, "wider than a 3 cm handle strap"
         assert pad.friction[0] == pytest.approx(1.5) and pad.condim[0] == 4
+        assert pad.priority[0] == 1, "the pad's contact parameters win"
+        np.testing.assert_allclose(pad.solref, [0.004, 1])
 
 
 def test_grasps_and_lifts_a_bag_handle_strap(converted):
