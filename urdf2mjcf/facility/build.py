@@ -43,27 +43,46 @@ class Component:
     """Standalone xacro, relative to the facility root."""
     flag: str | None
     """The recipe flag that includes it (None: always, when it has a placement)."""
+    prefix: str = ""
+    """Prefix of its link and joint names in the facility xacro."""
+    roles: str | None = None
+    """A robot's roles file (names a runner looks up), relative to the facility root."""
 
 
 COMPONENTS: dict[str, Component] = {
     "robot": Component(
-        "imetro_robot", "facility/robots/imetro_robot/urdf/imetro_robot.urdf.xacro", "robot"
+        "imetro_robot",
+        "facility/robots/imetro_robot/urdf/imetro_robot.urdf.xacro",
+        "robot",
+        "",
+        "facility/robots/imetro_robot/config/roles.yaml",
     ),
     "trainer": Component(
-        "stowage_unit", "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro", None
+        "stowage_unit",
+        "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro",
+        None,
+        "trainer_",
     ),
     "second_trainer": Component(
         "stowage_unit",
         "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro",
         "second_trainer",
+        "second_trainer_",
     ),
-    "hatch_4060": Component("hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4060"),
-    "hatch_4040": Component("hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4040"),
+    "hatch_4060": Component(
+        "hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4060", "hatch_4060_"
+    ),
+    "hatch_4040": Component(
+        "hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4040", "hatch_4040_"
+    ),
     "express_rack": Component(
-        "express_rack", "facility/mockups/express_rack/urdf/express_rack.urdf.xacro", "express_rack"
+        "express_rack",
+        "facility/mockups/express_rack/urdf/express_rack.urdf.xacro",
+        "express_rack",
+        "express_rack_",
     ),
-    "shelf": Component("shelf", "facility/mockups/shelf/urdf/shelf.urdf.xacro", "shelf"),
-    "ctb": Component("ctb", "facility/mockups/ctb/urdf/ctb.urdf.xacro", None),
+    "shelf": Component("shelf", "facility/mockups/shelf/urdf/shelf.urdf.xacro", "shelf", "shelf_"),
+    "ctb": Component("ctb", "facility/mockups/ctb/urdf/ctb.urdf.xacro", None, "ctb"),
 }
 
 
@@ -184,7 +203,8 @@ def build_facility(
                     comp_options["actuator_config"] = None
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
-        data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built)
+        roles = _roles(root, recipe, moved)
+        data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
         (stage / "facility.json").write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
         _swap_in(stage, output)
     except BaseException:
@@ -197,6 +217,22 @@ def build_facility(
         conversion=report,
         components={k: output / v for k, v in built.items()},
     )
+
+
+def _roles(root: Path, recipe: Recipe, placements: dict[str, Pose2D]) -> dict[str, dict]:
+    """Component name -> {prefix, roles}: what the manifest lists for each component."""
+    import yaml
+
+    out: dict[str, dict] = {}
+    for name in (*placements, "ctb"):
+        comp = COMPONENTS.get(name)
+        if comp is None:
+            continue
+        roles = None
+        if comp.roles and (root / comp.roles).is_file():
+            roles = yaml.safe_load((root / comp.roles).read_text())
+        out[name] = {"prefix": comp.prefix, "roles": roles}
+    return out
 
 
 def _swap_in(stage: Path, output: Path) -> None:

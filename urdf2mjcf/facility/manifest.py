@@ -24,6 +24,65 @@ def _name(m, objtype, i: int) -> str:
     return mujoco.mj_id2name(m, objtype, i) or ""
 
 
+def _prefixed(value, prefix: str):
+    """Role values with the component's prefix: names in lists and mappings, numbers as they are."""
+    if isinstance(value, str):
+        return prefix + value
+    if isinstance(value, list):
+        return [_prefixed(v, prefix) for v in value]
+    if isinstance(value, dict):
+        return {k: _prefixed(v, prefix) for k, v in value.items()}
+    return value
+
+
+def _check_names(m, value, where: str) -> None:
+    """Every name a role gives must exist in the compiled model (as some kind of object)."""
+    import mujoco
+
+    from ..errors import InputError
+
+    if isinstance(value, str):
+        kinds = (
+            mujoco.mjtObj.mjOBJ_JOINT,
+            mujoco.mjtObj.mjOBJ_ACTUATOR,
+            mujoco.mjtObj.mjOBJ_SENSOR,
+            mujoco.mjtObj.mjOBJ_CAMERA,
+            mujoco.mjtObj.mjOBJ_SITE,
+            mujoco.mjtObj.mjOBJ_BODY,
+        )
+        if not any(mujoco.mj_name2id(m, k, value) >= 0 for k in kinds):
+            raise InputError(
+                f"role names '{value}', which the facility does not contain", file=where
+            )
+    elif isinstance(value, list):
+        for v in value:
+            _check_names(m, v, where)
+    elif isinstance(value, dict):
+        for v in value.values():
+            _check_names(m, v, where)
+
+
+def _components(m, placements: dict[str, Pose2D], roles: dict[str, dict]) -> dict:
+    out = {}
+    joint_names = [_name(m, 3, j) for j in range(m.njnt)]  # mjOBJ_JOINT
+    for name in sorted(set(placements) | set(roles)):
+        info: dict = {}
+        if name in placements:
+            info["pose"] = _pose(placements[name])
+        spec = roles.get(name)
+        if spec is not None:
+            prefix = spec["prefix"]
+            info["prefix"] = prefix
+            if prefix:
+                info["joints"] = [j for j in joint_names if j.startswith(prefix)]
+            if spec.get("roles"):
+                named = _prefixed(spec["roles"], prefix)
+                _check_names(m, named, f"roles of '{name}'")
+                info["roles"] = named
+        out[name] = info
+    return out
+
+
 def manifest(
     scene: Path,
     recipe: Recipe,
@@ -33,6 +92,7 @@ def manifest(
     ctb: Pose2D | None,
     offsets: dict[str, dict[str, float]],
     components: dict[str, Path],
+    roles: dict[str, dict] | None = None,
 ) -> dict:
     import mujoco
 
@@ -96,7 +156,7 @@ def manifest(
         "flags": dict(recipe.flags),
         "jitter": dict(recipe.jitter) if seed is not None else {},
         "offsets": offsets,
-        "components": {name: {"pose": _pose(p)} for name, p in sorted(placements.items())},
+        "components": _components(m, placements, roles or {}),
         "ctb": {"pose": _pose(ctb)} if ctb is not None else None,
         "component_mjcf": {k: str(v) for k, v in sorted(components.items())},
         "simulation": {
