@@ -556,4 +556,6 @@ def test_collision_elements_keep_their_urdf_names_when_unique(tmp_path):
     model = parse.run(xacro.run(urdf, xacro.XacroConfig(use_environment=False)))
     out = collision.run(model, CollisionConfig(use_cache=False))
     assert [g.name for g in out.collision_geoms["a"]] == ["bumper", "a_collision_1"]
-    assert [g.name for g in out.collision_geoms["b"]] == ["b_collision"], "a name used twice is not a geom name"
+    assert [g.name for g in out.collision_geoms["b"]] == ["b_collision"], (
+        "a name used twice is not a geom name"
+    )

@@ -172,7 +172,11 @@ def build_facility(
             element="xacro",
         )
     placements = {n: p for n, p in recipe.placements.items() if _enabled(recipe, n)}
-    moved, ctb, offsets = jittered(placements, recipe.ctb, recipe.jitter, seed)
+    # The robot is the reference the demo is measured from: only mockups and the CTB move.
+    mockups = {n: p for n, p in placements.items() if n != "robot"}
+    moved, ctb, offsets = jittered(mockups, recipe.ctb, recipe.jitter, seed)
+    if "robot" in placements:
+        moved = {"robot": placements["robot"], **moved}
     args = xacro_args(recipe, moved, ctb)
     options = _convert_options(
         root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
