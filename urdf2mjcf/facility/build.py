@@ -41,12 +41,13 @@ class Component:
     """Package folder name under facility/robots or facility/mockups."""
     standalone: str
     """Standalone xacro, relative to the facility root."""
-    flag: str | None
+    flag: str | None = None
     """The recipe flag that includes it (None: always, when it has a placement)."""
     prefix: str = ""
     """Prefix of its link and joint names in the facility xacro."""
     roles: str | None = None
-    """A robot's roles file (names a runner looks up), relative to the facility root."""
+    """A robot's roles file (names a runner looks up), relative to the facility root;
+    a component with roles is a robot and is compiled with the recipe's actuator file."""
 
 
 COMPONENTS: dict[str, Component] = {
@@ -111,8 +112,15 @@ def _flag_text(value: object) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
 
+def components_of(recipe: Recipe) -> dict[str, Component]:
+    """The recipe's own component table, or the iMETRO one."""
+    if not recipe.components:
+        return COMPONENTS
+    return {name: Component(**spec) for name, spec in recipe.components.items()}
+
+
 def _enabled(recipe: Recipe, name: str) -> bool:
-    comp = COMPONENTS.get(name)
+    comp = components_of(recipe).get(name)
     flag = comp.flag if comp else None
     if flag is None:
         return True
@@ -190,12 +198,10 @@ def build_facility(
     try:
         report = api.convert(top, stage / "scene.xml", args=args, scene=False, **options)
         built: dict[str, Path] = {}
+        table = components_of(recipe)
+        present = [n for n in table if n in moved or (n == "ctb" and ctb is not None)]
         if components:
-            assets = sorted(
-                {
-                    COMPONENTS[n].asset: COMPONENTS[n] for n in (*moved, "ctb") if n in COMPONENTS
-                }.items()
-            )
+            assets = sorted({table[n].asset: table[n] for n in present}.items())
             for asset, comp in assets:
                 src = root / comp.standalone
                 if not src.is_file():
@@ -203,11 +209,11 @@ def build_facility(
                     continue
                 target = stage / "components" / asset / f"{asset}.xml"
                 comp_options = dict(options)
-                if asset != "imetro_robot":
+                if comp.roles is None:  # the actuator file belongs to the robot
                     comp_options["actuator_config"] = None
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
-        roles = _roles(root, recipe, moved)
+        roles = _roles(root, table, present)
         data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
         (stage / "facility.json").write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
         _swap_in(stage, output)
@@ -223,15 +229,13 @@ def build_facility(
     )
 
 
-def _roles(root: Path, recipe: Recipe, placements: dict[str, Pose2D]) -> dict[str, dict]:
+def _roles(root: Path, table: dict[str, Component], present: list[str]) -> dict[str, dict]:
     """Component name -> {prefix, roles}: what the manifest lists for each component."""
     import yaml
 
     out: dict[str, dict] = {}
-    for name in (*placements, "ctb"):
-        comp = COMPONENTS.get(name)
-        if comp is None:
-            continue
+    for name in present:
+        comp = table[name]
         roles = None
         if comp.roles and (root / comp.roles).is_file():
             roles = yaml.safe_load((root / comp.roles).read_text())

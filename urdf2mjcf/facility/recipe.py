@@ -35,7 +35,9 @@ import yaml
 
 from ..errors import InputError
 
+COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles")
 TOP_KEYS = (
+    "components",
     "name",
     "description",
     "xacro",
@@ -78,6 +80,8 @@ class Recipe:
     actuator_config: str | None = None
     gravcomp: bool = False
     description: str = ""
+    components: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    """Component name -> {asset, standalone, flag, prefix, roles}; empty: the iMETRO table."""
 
 
 def _fail(path: Path | None, key: str, message: str) -> InputError:
@@ -167,8 +171,24 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
                 raise _fail(path, where, f"'{value}' is not one of {valid}")
         elif _number(value, path, where) <= 0:
             raise _fail(path, where, "must be > 0")
+    components = {}
+    for cname, spec in (data.get("components") or {}).items():
+        where = f"components.{cname}"
+        if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
+            raise _fail(
+                path, where, "needs asset and standalone (and optionally flag, prefix, roles)"
+            )
+        unknown = set(spec) - set(COMPONENT_KEYS)
+        if unknown:
+            raise _fail(
+                path,
+                where,
+                f"unknown key(s) {', '.join(sorted(unknown))}; valid: {', '.join(COMPONENT_KEYS)}",
+            )
+        components[str(cname)] = {k: spec.get(k) for k in COMPONENT_KEYS if k in spec}
     return Recipe(
         name=str(data["name"]),
+        components=components,
         path=path,
         xacro=str(data["xacro"]),
         flags=flags,
