@@ -15,7 +15,6 @@ import argparse
 import json
 import os
 import platform
-import re
 import sys
 import tempfile
 import time
@@ -24,10 +23,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import urdf2mjcf  # noqa: E402
+from bench.docs_table import write_section  # noqa: E402
 from tests.corpus import example_robot_data_share, example_robot_data_urdfs  # noqa: E402
-
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-BEGIN, END = "<!-- corpus-bench:begin -->", "<!-- corpus-bench:end -->"
 
 
 def run_pass(
@@ -79,18 +76,27 @@ def main() -> int:
     }
     print(json.dumps(result, indent=2))
     if args.write_docs:
-        table = "\n".join(
+        write_section(
+            "corpus-bench",
             [
-                BEGIN,
-                "| corpus | robots | cold (s) | warm (s) | decompositions cold / warm | machine | date |",
-                "|---|---|---|---|---|---|---|",
-                f"| example-robot-data | {len(urdfs)} | {result['cold_s']} | {result['warm_s']} | "
-                f"{cold_stats['decomposed']} / {warm_stats['decomposed']} | {result['machine']} | {result['date']} |",
-                END,
-            ]
+                "corpus",
+                "robots",
+                "cold (s)",
+                "warm (s)",
+                "decompositions cold / warm",
+                "machine",
+                "date",
+            ],
+            [
+                "example-robot-data",
+                len(urdfs),
+                result["cold_s"],
+                result["warm_s"],
+                f"{cold_stats['decomposed']} / {warm_stats['decomposed']}",
+                result["machine"],
+                result["date"],
+            ],
         )
-        text = DOCS.read_text() if DOCS.exists() else f"# Benchmarks\n\n{BEGIN}\n{END}\n"
-        DOCS.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), table, text, flags=re.S))
     return 1 if cold_stats["failed"] or warm_stats["failed"] else 0
 
 

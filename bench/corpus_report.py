@@ -46,7 +46,9 @@ def main() -> int:
         if r["changed_inertials"]:
             lines.append(f"### `{r['file'].split('/robots/')[-1]}`")
             lines.append("")
-            lines += [f"- {element}: {message}" for element, message in r["changed_inertials"].items()]
+            lines += [
+                f"- {element}: {message}" for element, message in r["changed_inertials"].items()
+            ]
             lines.append("")
     lines += ["## Warnings", ""]
     for r in rows:

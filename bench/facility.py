@@ -15,7 +15,6 @@ import argparse
 import json
 import os
 import platform
-import re
 import sys
 import tempfile
 import time
@@ -24,9 +23,6 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-
-DOCS = ROOT / "docs" / "benchmarks.md"
-BEGIN, END = "<!-- facility-bench:begin -->", "<!-- facility-bench:end -->"
 
 
 def steps_per_second(xml: Path, seconds: float = 3.0) -> tuple[float, float]:
@@ -46,10 +42,13 @@ def steps_per_second(xml: Path, seconds: float = 3.0) -> tuple[float, float]:
 
 
 def main() -> int:
+    from bench.docs_table import write_section
     from urdf2mjcf.facility.build import build_facility
     from urdf2mjcf.facility.recipe import load_recipe
 
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--write-docs", action="store_true")
     args = parser.parse_args()
     recipe = load_recipe(ROOT / "recipes" / "imetro.yaml")
@@ -79,20 +78,30 @@ def main() -> int:
     }
     print(json.dumps(result, indent=2))
     if args.write_docs:
-        table = "\n".join(
+        write_section(
+            "facility-bench",
             [
-                BEGIN,
-                "| build cold (s) | build warm (s) | facility steps/s (x real time) | robot alone steps/s (x real time) | bodies | dofs | machine | date |",
-                "|---|---|---|---|---|---|---|---|",
-                f"| {result['cold_s']} | {result['warm_s']} | {result['facility_steps_per_s']} ({result['facility_realtime_factor']}x) | "
-                f"{result['robot_steps_per_s']} ({result['robot_realtime_factor']}x) | {result['bodies']} | {result['dofs']} | {result['machine']} | {result['date']} |",
-                END,
-            ]
+                "build cold (s)",
+                "build warm (s)",
+                "facility steps/s (x real time)",
+                "robot alone steps/s (x real time)",
+                "bodies",
+                "dofs",
+                "machine",
+                "date",
+            ],
+            [
+                result["cold_s"],
+                result["warm_s"],
+                f"{result['facility_steps_per_s']} ({result['facility_realtime_factor']}x)",
+                f"{result['robot_steps_per_s']} ({result['robot_realtime_factor']}x)",
+                result["bodies"],
+                result["dofs"],
+                result["machine"],
+                result["date"],
+            ],
+            intro="## Building and simulating the default facility\n\n`python bench/facility.py --write-docs`: `make-facility` cold (empty\ndecomposition cache) and warm, then steps per second of the whole facility\non one core with cameras off, against the robot alone.",
         )
-        text = DOCS.read_text()
-        if BEGIN not in text:
-            text += "\n## Building and simulating the default facility\n\n`python bench/facility.py --write-docs`: `make-facility` cold (empty\ndecomposition cache) and warm, then steps per second of the whole facility\non one core with cameras off, against the robot alone.\n\n" + BEGIN + "\n" + END + "\n"
-        DOCS.write_text(re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), table, text, flags=re.S))
     return 0
 
 

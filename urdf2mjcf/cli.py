@@ -41,6 +41,20 @@ class _Progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.__exit__(None, None, None)
+            self.bar = None
+
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _echo_notes(notes, verbose: int) -> None:
+    """Warnings, repairs and decimations always; everything else with -v."""
+    for note in notes:
+        if note.kind in ("warning", "repaired", "decimated") or verbose:
+            click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
 
 
 def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
@@ -185,8 +199,7 @@ def urdf2mjcf_command(
         densities = {k: float(v) for k, v in _pairs(link_density, "=", "LINK=DENSITY").items()}
     except ValueError:
         raise click.BadParameter("density must be a number", param_hint="--link-density") from None
-    progress = _Progress(enabled=not quiet and sys.stderr.isatty())
-    try:
+    with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
         options = api.make_options(
             args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
             package_paths=package_path,
@@ -213,18 +226,10 @@ def urdf2mjcf_command(
             overwrite=overwrite,
         )
         report = api.convert(source, output, options)
-    except ConversionError as exc:
-        progress.close()
-        logging.getLogger(__name__).debug("conversion failed", exc_info=True)
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(2)
-    progress.close()
     if report_path:
         report_path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
     if not quiet:
-        for note in report.notes:
-            if note.kind in ("warning", "repaired", "decimated") or verbose:
-                click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
+        _echo_notes(report.notes, verbose)
         click.echo(f"wrote {output}")
         click.echo(report.summary())
 
@@ -233,6 +238,10 @@ def run_command(command: click.Command, args: list[str] | None = None) -> None:
     """Run ``command`` so that every failure is one ``error:`` line and exit code 2."""
     try:
         command.main(args=args, standalone_mode=False)
+    except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
+        logging.getLogger(__name__).debug("%s failed", command.name, exc_info=True)
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except click.Abort:
@@ -297,8 +306,7 @@ def make_facility_command(
     from .facility.recipe import load_recipe
 
     _configure_logging(verbose, quiet)
-    progress = _Progress(enabled=not quiet and sys.stderr.isatty())
-    try:
+    with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
         root = facility_build.find_root(root)
         recipe_path = Path(recipe) if recipe else root / "recipes" / "imetro.yaml"
         parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"))
@@ -313,16 +321,8 @@ def make_facility_command(
             cache_dir=cache_dir,
             progress=progress,
         )
-    except ConversionError as exc:
-        progress.close()
-        logging.getLogger(__name__).debug("facility build failed", exc_info=True)
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(2)
-    progress.close()
     if not quiet:
-        for note in report.conversion.notes:
-            if note.kind in ("warning", "repaired", "decimated") or verbose:
-                click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
+        _echo_notes(report.conversion.notes, verbose)
         counts = report.manifest["counts"]
         click.echo(f"wrote {report.scene}")
         click.echo(

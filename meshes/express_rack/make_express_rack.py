@@ -21,14 +21,11 @@ and triangle order (urdf2mjcf.assets.stl_bytes).
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-import numpy as np
 from manifold3d import Manifold, OpType
 
-from urdf2mjcf.assets import stl_bytes
-from urdf2mjcf.ir import MeshData
+from urdf2mjcf.csg import box, cylinder_z, write_meshes
 
 SEGMENTS = 48
 
@@ -59,16 +56,6 @@ DOOR_KNUCKLES = ((0.07, 0.11), (-0.11, -0.07))
 DOOR_LABEL = ((0.06, 0.26), (-0.06, 0.06), 0.002)  # (y, z, depth): a recessed label panel
 
 
-def box(x: tuple[float, float], y: tuple[float, float], z: tuple[float, float]) -> Manifold:
-    return Manifold.cube((x[1] - x[0], y[1] - y[0], z[1] - z[0])).translate((x[0], y[0], z[0]))
-
-
-def cylinder_z(
-    radius: float, z: tuple[float, float], xy: tuple[float, float] = (0.0, 0.0)
-) -> Manifold:
-    return Manifold.cylinder(z[1] - z[0], radius, radius, SEGMENTS).translate((xy[0], xy[1], z[0]))
-
-
 def express_rack() -> Manifold:
     cut_x = (BAY_X[0], BAY_X[1] + 0.01)  # through the front face
     cuts = [box(cut_x, y, z) for z in LOCKER_ROWS for y in LOCKER_COLUMNS]
@@ -91,7 +78,7 @@ def merlin_body() -> Manifold:
 def merlin_door() -> Manifold:
     (ly, lz, depth) = DOOR_LABEL
     plate = box(DOOR_X, DOOR_Y, DOOR_Z) - box((DOOR_X[1] - depth, DOOR_X[1] + 0.01), ly, lz)
-    knuckles = [cylinder_z(DOOR_KNUCKLE_R, z) for z in DOOR_KNUCKLES]
+    knuckles = [cylinder_z(DOOR_KNUCKLE_R, z, segments=SEGMENTS) for z in DOOR_KNUCKLES]
     return Manifold.batch_boolean([plate, *knuckles], OpType.Add)
 
 
@@ -102,20 +89,8 @@ MESHES = {
 }
 
 
-def mesh_bytes(solid: Manifold) -> bytes:
-    mesh = solid.to_mesh()
-    vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
-    faces = np.asarray(mesh.tri_verts, dtype=np.int64)
-    return stl_bytes(MeshData(vertices, faces))
-
-
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent)
-    out = parser.parse_args(argv).out
-    out.mkdir(parents=True, exist_ok=True)
-    for name, make in MESHES.items():
-        (out / name).write_bytes(mesh_bytes(make()))
+    write_meshes(MESHES, Path(__file__).resolve().parent, argv, __doc__)
 
 
 if __name__ == "__main__":

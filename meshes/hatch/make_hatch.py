@@ -19,17 +19,12 @@ and triangle order (urdf2mjcf.assets.stl_bytes).
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 
-import numpy as np
 from manifold3d import Manifold, OpType
 
-from urdf2mjcf.assets import stl_bytes
-from urdf2mjcf.ir import MeshData
-
-SEGMENTS = 64  # facets of every round part
+from urdf2mjcf.csg import box, cylinder_x, cylinder_y, cylinder_z, write_meshes
 
 # --- hatch frame (hatch frame coordinates, metres) -------------------------
 WALL_X = (0.61, 0.66)  # bulkhead slab; its front face (x = 0.66) faces the door
@@ -66,34 +61,6 @@ HUB_R = 0.025
 SPOKE_W = 0.015
 AXLE_R = 0.012  # axle from the door surface (z = 0) to the hub
 HANDLE_PIVOT = (0.085, 0.0, 0.062)  # the fold-out handle's pivot (axis along y)
-
-
-def box(x: tuple[float, float], y: tuple[float, float], z: tuple[float, float]) -> Manifold:
-    return Manifold.cube((x[1] - x[0], y[1] - y[0], z[1] - z[0])).translate((x[0], y[0], z[0]))
-
-
-def cylinder_z(
-    radius: float, z: tuple[float, float], xy: tuple[float, float] = (0.0, 0.0)
-) -> Manifold:
-    return Manifold.cylinder(z[1] - z[0], radius, radius, SEGMENTS).translate((xy[0], xy[1], z[0]))
-
-
-def cylinder_x(radius: float, x: tuple[float, float], yz: tuple[float, float]) -> Manifold:
-    # a z cylinder turned onto +x (rotation about y by 90 degrees: z -> x)
-    return (
-        Manifold.cylinder(x[1] - x[0], radius, radius, SEGMENTS)
-        .rotate((0.0, 90.0, 0.0))
-        .translate((x[0], yz[0], yz[1]))
-    )
-
-
-def cylinder_y(radius: float, y: tuple[float, float], xz: tuple[float, float]) -> Manifold:
-    # a z cylinder turned onto +y (rotation about x by -90 degrees: z -> y)
-    return (
-        Manifold.cylinder(y[1] - y[0], radius, radius, SEGMENTS)
-        .rotate((-90.0, 0.0, 0.0))
-        .translate((xz[0], y[0], xz[1]))
-    )
 
 
 def brace(y_centre: float) -> Manifold:
@@ -159,20 +126,8 @@ MESHES = {
 }
 
 
-def mesh_bytes(solid: Manifold) -> bytes:
-    mesh = solid.to_mesh()
-    vertices = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
-    faces = np.asarray(mesh.tri_verts, dtype=np.int64)
-    return stl_bytes(MeshData(vertices, faces))
-
-
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent)
-    out = parser.parse_args(argv).out
-    out.mkdir(parents=True, exist_ok=True)
-    for name, make in MESHES.items():
-        (out / name).write_bytes(mesh_bytes(make()))
+    write_meshes(MESHES, Path(__file__).resolve().parent, argv, __doc__)
 
 
 if __name__ == "__main__":
