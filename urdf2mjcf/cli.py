@@ -9,6 +9,7 @@ from pathlib import Path
 
 import click
 
+from . import headless
 from .errors import ConversionError
 
 
@@ -236,6 +237,7 @@ def urdf2mjcf_command(
 
 def run_command(command: click.Command, args: list[str] | None = None) -> None:
     """Run ``command`` so that every failure is one ``error:`` line and exit code 2."""
+    headless.configure()  # before anything imports mujoco: cameras render without a display
     try:
         command.main(args=args, standalone_mode=False)
     except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
@@ -293,10 +295,14 @@ def urdf2mjcf_main() -> None:
     type=click.Path(path_type=Path, file_okay=False),
     help="Where convex decompositions are cached.",
 )
+@click.option(
+    "--demo", is_flag=True, help="Then replay the logistics demo in it (see facility-demo)."
+)
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+@click.pass_context
 def make_facility_command(
-    recipe, output, sets, seed, root, no_components, jobs, cache_dir, verbose, quiet
+    ctx, recipe, output, sets, seed, root, no_components, jobs, cache_dir, demo, verbose, quiet
 ):
     """Build a simulated facility from a RECIPE (default: recipes/imetro.yaml).
 
@@ -330,7 +336,18 @@ def make_facility_command(
             f"{counts['actuators']} actuators, {counts['sensors']} sensors, "
             f"{counts['cameras']} cameras" + (f", seed {seed}" if seed is not None else "")
         )
+    if demo:
+        from .runner.cli import facility_demo_command
+
+        ctx.invoke(facility_demo_command, scene=report.output)
 
 
 def make_facility_main() -> None:
     run_command(make_facility_command)
+
+
+def facility_demo_main() -> None:
+    headless.configure()
+    from .runner.cli import facility_demo_command
+
+    run_command(facility_demo_command)

@@ -1,0 +1,17 @@
+"""Replay the iMETRO logistics demo in a built facility and judge it.
+
+The runner knows only a compiled facility (``scene.xml``) and its manifest
+(``facility.json``): it looks up the robot's joints, actuators, sensors,
+cameras and sites by the names the manifest gives for the robot's roles, and
+drives the robot only through its actuators. One module per concern:
+
+``load``        scene + manifest -> :class:`~urdf2mjcf.runner.load.Facility`
+``control``     stepping, smooth joint trajectories, the gripper, settle checks
+``ik``          damped least squares on the site Jacobian, on a copy of the data
+``hinge``       an arc of tool poses around a hinge joint of the loaded model
+``perception``  wrist camera RGB-D, red mask, PCA, back-projection -> grasp pose
+``judge``       intended vs unintended contacts, and the success test
+``demo``        the waypoints file and the steps of the demo
+``trials``      seeded trials in parallel processes
+``cli``         ``facility-demo``
+"""

@@ -1,0 +1,416 @@
+"""The logistics demo: steps from a waypoints file, executed and judged one by one.
+
+Step kinds (``kind:`` in the file):
+
+``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value}
+``pose``     the grasp site to ``position`` with tool axes ``z``/``x`` given in ``frame``
+             (``world``, a body of the model, or ``handle``: the perceived strap);
+             a straight Cartesian line through dense IK
+``relative`` a straight move by ``tool`` (tool-frame offset) or ``world`` offset
+``hinge``    the arc around ``joint``: ``steps`` x ``step_deg``, orientation held or not
+``gripper``  ``open`` / ``close``
+``look``     render the wrist camera, find the red handle, set the ``handle`` frame
+``wait``     ``seconds``
+
+Every step may give ``contacts`` (intended pairs of body-name globs), ``carried``
+(the bag is in the hand: its contacts with the environment count too) and ``settle``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import yaml
+
+from . import ik, perception
+from .control import Controller, path_duration
+from .hinge import arc, hinge_axis, turned
+from .judge import ContactJudge, stowed
+from .load import Facility
+
+
+class StepError(RuntimeError):
+    """A step cannot be carried out (unreachable pose, nothing seen)."""
+
+
+@dataclass
+class StepResult:
+    name: str
+    kind: str
+    ok: bool
+    duration: float  # simulated seconds
+    contacts: list[str] = field(default_factory=list)
+    message: str = ""
+
+
+@dataclass
+class DemoResult:
+    ok: bool
+    steps: list[StepResult]
+    verdict: dict | None
+    sim_time: float
+    wall_time: float
+    failed_step: str | None = None
+    message: str = ""
+    handle: dict | None = None
+
+    def to_json(self) -> dict:
+        out = asdict(self)
+        out["real_time_factor"] = self.sim_time / self.wall_time if self.wall_time else None
+        return out
+
+
+def load_waypoints(path: str | Path) -> dict:
+    return yaml.safe_load(Path(path).read_text())
+
+
+def _frame(run: Demo, name: str) -> tuple[np.ndarray, np.ndarray]:
+    if name == "world":
+        return np.zeros(3), np.eye(3)
+    if name == "handle":
+        if run.handle is None:
+            raise StepError("no handle frame: the 'look' step has not found the strap")
+        return run.handle
+    b = run.fac.body(name)
+    return run.d.xpos[b].copy(), run.d.xmat[b].reshape(3, 3).copy()
+
+
+def _rotation(z: np.ndarray, x: np.ndarray) -> np.ndarray:
+    z = np.asarray(z, float) / np.linalg.norm(z)
+    x = np.asarray(x, float) - np.dot(x, z) * z
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+class Demo:
+    def __init__(self, fac: Facility, spec: dict, *, frames: Path | None = None, log=print):
+        self.fac, self.spec = fac, spec
+        self.m, self.d, self.r = fac.model, fac.data, fac.robot
+        rs = spec.get("robot", {})
+        self.vmax = np.array(rs.get("vmax", [0.15, 0.3, 1, 1, 1, 1.5, 1.5, 1.5]), float)
+        self.weights = np.array(rs.get("ik_weights", [1.0] * len(self.r.joints)), float)
+        self.site = self.r.sites[rs.get("site", "grasp")]
+        self.bag = spec["bag"]
+        self.judge = ContactJudge(fac, self.bag["body"])
+        self.ctl = Controller(fac, self.vmax, monitor=self.judge)
+        self.global_contacts = spec.get("contacts", [])
+        self.handle: tuple[np.ndarray, np.ndarray] | None = None
+        self.handle_info: dict | None = None
+        self.frames = Path(frames) if frames else None
+        self.log = log
+        self._cams: dict[int, perception.Camera] = {}
+        self._scene_renderer = None
+
+    # ------------------------------------------------------------ helpers
+    def camera(self, role: str) -> perception.Camera:
+        cam = self.r.cameras[role]
+        if cam not in self._cams:
+            size = self.spec.get("perception", {}).get("size")
+            self._cams[cam] = perception.Camera(self.m, cam, tuple(size) if size else None)
+        return self._cams[cam]
+
+    def close(self) -> None:
+        for c in self._cams.values():
+            c.close()
+        if self._scene_renderer is not None:
+            self._scene_renderer.close()
+
+    def snapshot(self, name: str, extra: np.ndarray | None = None) -> None:
+        if self.frames is None:
+            return
+        from PIL import Image
+
+        self.frames.mkdir(parents=True, exist_ok=True)
+        view = self.spec.get("view", {})
+        if self._scene_renderer is None:
+            self._scene_renderer = mujoco.Renderer(self.m, 480, 640)
+        cam = mujoco.MjvCamera()
+        cam.lookat[:] = view.get("lookat", [0.4, 0.7, 0.8])
+        cam.distance = view.get("distance", 3.6)
+        cam.azimuth = view.get("azimuth", -120)
+        cam.elevation = view.get("elevation", -30)
+        self._scene_renderer.update_scene(self.d, cam)
+        Image.fromarray(self._scene_renderer.render()).save(self.frames / f"{name}.png")
+        if extra is not None:
+            Image.fromarray(extra).save(self.frames / f"{name}_wrist.png")
+
+    def ik(self, pos, rot, q0=None) -> np.ndarray:
+        res = ik.solve(
+            self.m,
+            self.d,
+            self.site,
+            pos,
+            rot,
+            self.r.qpos,
+            self.r.dofs,
+            self.r.lower,
+            self.r.upper,
+            q0=q0,
+            weights=self.weights,
+        )
+        if not res.ok:
+            raise StepError(
+                f"no IK solution for the {self.m.site(self.site).name} pose at "
+                f"{np.round(pos, 3).tolist()} (left {1000 * res.pos_err:.1f} mm, "
+                f"{math.degrees(res.rot_err):.1f} deg)"
+            )
+        return res.q
+
+    def cartesian_path(
+        self, poses: list[tuple[np.ndarray, np.ndarray]], q0: np.ndarray, spacing: float = 0.01
+    ) -> np.ndarray:
+        """Dense IK along straight segments between poses (position and rotation)."""
+        path = [q0]
+        p_prev, R_prev = ik.site_pose(self.m, self.d, self.site, q0, self.r.qpos)
+        q = q0
+        for p, R in poses:
+            dist = np.linalg.norm(p - p_prev)
+            ang = np.linalg.norm(ik.rot_err(R, R_prev))
+            n = max(1, int(math.ceil(max(dist / spacing, ang / math.radians(2)))))
+            qa, qb = np.zeros(4), np.zeros(4)
+            mujoco.mju_mat2Quat(qa, R_prev.ravel())
+            mujoco.mju_mat2Quat(qb, np.ascontiguousarray(R).ravel())
+            for k in range(1, n + 1):
+                s = k / n
+                quat = _slerp(qa, qb, s)
+                Rk = np.zeros(9)
+                mujoco.mju_quat2Mat(Rk, quat)
+                q = self.ik(p_prev + s * (p - p_prev), Rk.reshape(3, 3), q0=q)
+                path.append(q)
+            p_prev, R_prev = p, R
+        path = np.array(path)
+        jump = np.abs(np.diff(path, axis=0)).max(axis=0) if len(path) > 1 else 0
+        if np.any(jump > 0.5):
+            raise StepError("the Cartesian path jumps in joint space (a branch change of the IK)")
+        return path
+
+    # ------------------------------------------------------------ steps
+    def run_step(self, step: dict) -> None:
+        kind = step["kind"]
+        self.ctl.vmax = self.vmax * float(step.get("speed", 1.0))
+        getattr(self, f"_do_{kind}")(step)
+        if step.get("settle", kind not in ("wait", "gripper", "look")):
+            self.ctl.settle(timeout=step.get("settle_timeout", 1.5))
+
+    def _do_joints(self, step):
+        q = self.ctl.target.copy()
+        if "q" in step:
+            q = np.array(step["q"], float)
+        if "arm" in step:
+            q[2:] = step["arm"]
+        for name, value in step.get("set", {}).items():
+            q[self.r.joint_names.index(name)] = value
+        self.ctl.move_to(q, step.get("duration"))
+
+    def _target_pose(self, step):
+        origin, R0 = _frame(self, step.get("frame", "world"))
+        pos = origin + R0 @ np.asarray(step["position"], float)
+        _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
+        if "z" in step:
+            R = R0 @ _rotation(step["z"], step["x"])
+            if step.get("x_sign_free") and R[:, 0] @ Rcur[:, 0] < 0:
+                R = R @ np.diag([-1.0, -1.0, 1.0])
+        else:
+            R = Rcur
+        return pos, R
+
+    def _do_pose(self, step):
+        pos, R = self._target_pose(step)
+        if step.get("joint_space"):
+            q = self.ik(
+                pos, R, q0=np.array(step["seed"], float) if "seed" in step else self.ctl.target
+            )
+            self.ctl.move_to(q, step.get("duration"))
+            return
+        path = self.cartesian_path([(pos, R)], self.ctl.target.copy())
+        self.ctl.follow(path, step.get("duration"))
+
+    def _do_relative(self, step):
+        p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
+        if "tool" in step:
+            p = p + R @ np.asarray(step["tool"], float)
+        if "world" in step:
+            p = p + np.asarray(step["world"], float)
+        path = self.cartesian_path([(p, R)], self.ctl.target.copy())
+        self.ctl.follow(path, step.get("duration"))
+
+    def _do_hinge(self, step):
+        j = self.fac.joint(step["joint"])
+        anchor, axis = hinge_axis(self.m, self.d, j)
+        p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
+        hold = step.get("hold_orientation", True)
+        poses = arc(
+            anchor,
+            axis,
+            p,
+            R,
+            steps=step.get("steps", 8),
+            step_deg=step.get("step_deg", 11.5),
+            hold_orientation=hold,
+        )
+        q = self.ctl.target.copy()
+        prev = 0.0
+        for ang, _, _ in poses:  # each pose of the arc, reached along the circle
+            n = max(2, int(math.ceil(math.degrees(ang - prev))))
+            path = [q]
+            for k in range(1, n + 1):
+                sp, sR = turned(anchor, axis, p, R, prev + (ang - prev) * k / n, hold)
+                q = self.ik(sp, sR, q0=q)
+                path.append(q)
+            path = np.array(path)
+            self.ctl.follow(
+                path, max(step.get("step_time", 1.0), path_duration(path, self.ctl.vmax))
+            )
+            self.ctl.settle(timeout=0.5)
+            prev = ang
+        self.lid_angle = math.degrees(self.d.qpos[self.m.jnt_qposadr[j]])
+
+    def _do_gripper(self, step):
+        what = step["action"]
+        opening = {"open": self.r.gripper_open, "close": self.r.gripper_closed}.get(what, what)
+        self.ctl.set_gripper(float(opening), step.get("seconds", 1.0))
+
+    def _do_wait(self, step):
+        self.ctl.wait(step["seconds"])
+
+    def _do_look(self, step):
+        cam = self.camera(step.get("camera", "wrist"))
+        rgb, depth = cam.rgbd(self.d)
+        g = perception.find_handle(self.m, self.d, cam.cam, rgb, depth, step.get("min_pixels", 200))
+        mask = perception.red_mask(rgb)
+        self.snapshot(step["name"], (mask[..., None] * np.array([255, 255, 255])).astype(np.uint8))
+        if g is None:
+            raise StepError(
+                f"the CTB handle is not in the wrist camera's view ({int(mask.sum())} red pixels)"
+            )
+        border = step.get("border_px", 2)
+        vs, us = np.nonzero(g.segment.mask)
+        h, w = mask.shape
+        if (
+            us.min() < border
+            or vs.min() < border
+            or us.max() >= w - border
+            or vs.max() >= h - border
+        ):
+            raise StepError("the CTB handle is cut by the edge of the wrist camera's image")
+        R = np.column_stack([g.axis, np.cross([0, 0, 1.0], g.axis), [0, 0, 1.0]])
+        self.handle = (g.position, R)
+        self.handle_info = {
+            "position": np.round(g.position, 4).tolist(),
+            "yaw_deg": round(math.degrees(g.yaw), 2),
+            "pixels": g.segment.pixels,
+            "centroid_px": np.round(g.segment.centroid, 1).tolist(),
+            "aspect": round(g.segment.aspect, 2),
+            "depth": round(g.depth, 4),
+        }
+        self.log(
+            f"  handle at {self.handle_info['position']} yaw {self.handle_info['yaw_deg']} deg "
+            f"({g.segment.pixels} px)"
+        )
+
+    # ------------------------------------------------------------ run
+    def run(self) -> DemoResult:
+        t0 = time.perf_counter()
+        sim0 = self.d.time
+        results: list[StepResult] = []
+        failed = None
+        message = ""
+        for step in self.spec["steps"]:
+            name = step["name"]
+            self.judge.begin(
+                self.global_contacts + step.get("contacts", []), step.get("carried", False)
+            )
+            ts = self.d.time
+            ok, msg = True, ""
+            try:
+                self.run_step(step)
+            except StepError as exc:
+                ok, msg = False, str(exc)
+            bad = self.judge.message()
+            if ok and bad:
+                ok, msg = False, bad
+            if ok and "check" in step:
+                msg = self._check(step["check"])
+                ok = not msg
+            contacts = sorted(f"{a}~{b}" for a, b in self.judge.log.intended)
+            res = StepResult(name, step["kind"], ok, round(self.d.time - ts, 3), contacts, msg)
+            results.append(res)
+            self.log(
+                f"{name:<24} {'ok' if ok else 'FAIL':<5} {res.duration:7.2f} s  "
+                f"{', '.join(contacts) if contacts else '-'}" + (f"\n  {msg}" if msg else "")
+            )
+            if step.get("frame") and self.frames is not None and step["kind"] != "look":
+                pass
+            if step.get("snapshot"):
+                self.snapshot(name)
+            if not ok:
+                failed, message = name, msg
+                self.snapshot(f"failed_{name}")
+                break
+        verdict = None
+        if failed is None:
+            self.ctl.wait(self.spec.get("final_wait", 1.5))
+            st = self.spec["stowage"]
+            v = stowed(
+                self.fac, self.bag["body"], self.bag["geom"], st["body"], tuple(st["inside"])
+            )
+            verdict = asdict(v)
+            message = v.message
+            if not v.ok:
+                failed = "success check"
+            self.snapshot("final")
+        return DemoResult(
+            failed is None,
+            results,
+            verdict,
+            round(self.d.time - sim0, 3),
+            round(time.perf_counter() - t0, 3),
+            failed,
+            message,
+            self.handle_info,
+        )
+
+    def _check(self, check: dict) -> str:
+        if "joint_above_deg" in check:
+            name, limit = check["joint_above_deg"]
+            j = self.fac.joint(name)
+            ang = math.degrees(self.d.qpos[self.m.jnt_qposadr[j]])
+            if ang < limit:
+                return f"'{name}' is at {ang:.1f} deg, not above {limit} deg"
+        if "bag_lifted" in check:
+            b = self.fac.body(self.bag["body"])
+            if self.d.xpos[b][2] < check["bag_lifted"]:
+                return (
+                    f"the CTB is not in the gripper (its bottom is {self.d.xpos[b][2]:.3f} m "
+                    f"above the floor, expected > {check['bag_lifted']})"
+                )
+        return ""
+
+
+def _slerp(qa: np.ndarray, qb: np.ndarray, s: float) -> np.ndarray:
+    d = float(np.dot(qa, qb))
+    if d < 0:
+        qb, d = -qb, -d
+    if d > 0.9995:
+        q = qa + s * (qb - qa)
+        return q / np.linalg.norm(q)
+    th = math.acos(d)
+    return (math.sin((1 - s) * th) * qa + math.sin(s * th) * qb) / math.sin(th)
+
+
+def run_demo(
+    scene: str | Path, waypoints: str | Path, *, frames: Path | None = None, log=print
+) -> DemoResult:
+    from .load import load
+
+    fac = load(scene)
+    demo = Demo(fac, load_waypoints(waypoints), frames=frames, log=log)
+    try:
+        return demo.run()
+    finally:
+        demo.close()

@@ -1,0 +1,63 @@
+"""An arc of tool poses around a hinge joint, from the hinge's pose in the loaded model.
+
+The axis comes from the model (``xanchor``, ``xaxis`` after ``mj_forward``),
+so a moved or jittered mockup moves the arc with it. The tool position is
+rotated about the axis by each step's angle; its orientation is either held
+(as the real demo does) or rotated with the lid.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+
+def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation by ``angle`` (rad) about the unit ``axis`` (right hand)."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+
+
+def hinge_axis(m: mujoco.MjModel, d: mujoco.MjData, joint: int) -> tuple[np.ndarray, np.ndarray]:
+    """A point on the hinge's axis and its unit direction, in the world."""
+    if m.jnt_type[joint] != mujoco.mjtJoint.mjJNT_HINGE:
+        raise ValueError(f"joint '{m.joint(joint).name}' is not a hinge")
+    return d.xanchor[joint].copy(), d.xaxis[joint] / np.linalg.norm(d.xaxis[joint])
+
+
+def arc(
+    anchor: np.ndarray,
+    axis: np.ndarray,
+    start_pos: np.ndarray,
+    start_rot: np.ndarray,
+    *,
+    steps: int = 8,
+    step_deg: float = 11.5,
+    hold_orientation: bool = True,
+) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """``steps`` poses after the start: (angle in rad, position, rotation) each, the
+    position turned about the axis through ``anchor`` by k x ``step_deg``."""
+    out = []
+    for k in range(1, steps + 1):
+        ang = math.radians(step_deg * k)
+        out.append((ang, *turned(anchor, axis, start_pos, start_rot, ang, hold_orientation)))
+    return out
+
+
+def turned(
+    anchor: np.ndarray,
+    axis: np.ndarray,
+    pos: np.ndarray,
+    rot: np.ndarray,
+    angle: float,
+    hold_orientation: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pose (pos, rot) turned by ``angle`` (rad) about the hinge axis."""
+    R = axis_rotation(axis, angle)
+    return anchor + R @ (np.asarray(pos, float) - anchor), (
+        rot.copy() if hold_orientation else R @ rot
+    )
