@@ -351,3 +351,10 @@ def facility_demo_main() -> None:
     from .runner.cli import facility_demo_command
 
     run_command(facility_demo_command)
+
+
+def rover_drive_main() -> None:
+    headless.configure()
+    from .runner.rover import rover_drive_command
+
+    run_command(rover_drive_command)

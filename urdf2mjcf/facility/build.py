@@ -17,7 +17,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .. import api
@@ -25,6 +25,7 @@ from ..errors import InputError, OutputError
 from .jitter import jittered
 from .manifest import manifest
 from .recipe import Pose2D, Recipe
+from .scatter import rocks_arg, scatter
 
 log = logging.getLogger(__name__)
 
@@ -186,6 +187,13 @@ def build_facility(
     if "robot" in placements:
         moved = {"robot": placements["robot"], **moved}
     args = xacro_args(recipe, moved, ctb)
+    # Rocks: the recipe's seeded scatter (--seed replaces its seed), clear of every placement.
+    rocks, rock_seed = [], None
+    if recipe.rocks.get("count"):
+        rock_seed = seed if seed is not None else recipe.rocks["seed"]
+        clear_of = [p.xyz[:2] for p in moved.values()]
+        rocks = scatter(recipe.rocks, rock_seed, clear_of, recipe.path)
+        args["rocks"] = rocks_arg(rocks)
     options = _convert_options(
         root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
     )
@@ -215,6 +223,8 @@ def build_facility(
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, table, present)
         data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
+        if rocks:
+            data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
         (stage / "facility.json").write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
         _swap_in(stage, output)
     except BaseException:

@@ -16,6 +16,7 @@ A recipe is a YAML file (see ``recipes/imetro.yaml``)::
       ctb_yaw: 0.2618
     simulation: {timestep: 0.002, integrator: implicitfast, solver: Newton}
     actuator_config: facility/robots/imetro_robot/config/actuators.yaml
+    rocks: {count: 24, seed: 3, area: [-30, 30, -30, 30]}   # optional, see scatter.py
 
 Every path is relative to the facility root (the folder holding
 ``facility/`` and ``recipes/``). ``--set KEY=VALUE`` edits a recipe: a bare
@@ -34,6 +35,7 @@ from typing import Any
 import yaml
 
 from ..errors import InputError
+from .scatter import parse_rocks
 
 COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles")
 TOP_KEYS = (
@@ -48,6 +50,7 @@ TOP_KEYS = (
     "simulation",
     "actuator_config",
     "gravcomp",
+    "rocks",
 )
 JITTER_KEYS = ("position", "yaw", "ctb_position", "ctb_yaw")
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
@@ -82,6 +85,8 @@ class Recipe:
     description: str = ""
     components: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     """Component name -> {asset, standalone, flag, prefix, roles}; empty: the iMETRO table."""
+    rocks: Mapping[str, Any] = field(default_factory=dict)
+    """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
 
 
 def _fail(path: Path | None, key: str, message: str) -> InputError:
@@ -199,6 +204,7 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
         actuator_config=data.get("actuator_config"),
         gravcomp=bool(data.get("gravcomp", False)),
         description=str(data.get("description", "")),
+        rocks=parse_rocks(data.get("rocks"), path),
     )
 
 

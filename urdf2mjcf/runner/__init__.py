@@ -1,4 +1,4 @@
-"""Replay the iMETRO logistics demo in a built facility and judge it.
+"""Run tasks in a built facility: replay the iMETRO logistics demo and judge it, drive rovers.
 
 The runner knows only a compiled facility (``scene.xml``) and its manifest
 (``facility.json``): it looks up the robot's joints, actuators, sensors,
@@ -14,4 +14,5 @@ drives the robot only through its actuators. One module per concern:
 ``demo``        the waypoints file and the steps of the demo
 ``trials``      seeded trials in parallel processes
 ``cli``         ``facility-demo``
+``rover``       MIRA3D rovers: wheel velocity driving, odometry vs true pose, ``rover-drive``
 """
