@@ -26,7 +26,6 @@ key is a flag, a dotted key any field (``jitter.ctb_yaw=0.1``).
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +35,7 @@ import yaml
 
 from ..errors import InputError
 from .scatter import parse_rocks
+from .values import fail, number
 
 COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles")
 TOP_KEYS = (
@@ -89,32 +89,18 @@ class Recipe:
     """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
 
 
-def _fail(path: Path | None, key: str, message: str) -> InputError:
-    return InputError(message, file=path or "recipe", element=key)
-
-
-def _number(value: Any, path: Path | None, key: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise _fail(path, key, f"'{value}' is not a number") from None
-    if not math.isfinite(x):
-        raise _fail(path, key, f"'{value}' is not finite")
-    return x
-
-
 def _pose(value: Any, path: Path | None, key: str) -> Pose2D:
     if not isinstance(value, Mapping) or "xyz" not in value:
-        raise _fail(path, key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
+        raise fail(path, key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
     unknown = set(value) - {"xyz", "yaw"}
     if unknown:
-        raise _fail(path, key, f"unknown key(s) {', '.join(sorted(unknown))}; valid: xyz, yaw")
+        raise fail(path, key, f"unknown key(s) {', '.join(sorted(unknown))}; valid: xyz, yaw")
     xyz = value["xyz"]
     if not isinstance(xyz, (list, tuple)) or len(xyz) != 3:
-        raise _fail(path, f"{key}.xyz", "needs three numbers")
+        raise fail(path, f"{key}.xyz", "needs three numbers")
     return Pose2D(
-        tuple(_number(v, path, f"{key}.xyz") for v in xyz),  # type: ignore[arg-type]
-        _number(value.get("yaw", 0.0), path, f"{key}.yaw"),
+        tuple(number(v, path, f"{key}.xyz") for v in xyz),  # type: ignore[arg-type]
+        number(value.get("yaw", 0.0), path, f"{key}.yaw"),
     )
 
 
@@ -138,20 +124,20 @@ def apply_sets(data: dict, sets: Mapping[str, str], path: Path | None) -> dict:
         for part in parts[:-1]:
             target = target.setdefault(part, {})
             if not isinstance(target, dict):
-                raise _fail(path, key, f"'{part}' is not a section")
+                raise fail(path, key, f"'{part}' is not a section")
         target[parts[-1]] = value
     return data
 
 
 def parse_recipe(data: Any, path: Path | None) -> Recipe:
     if not isinstance(data, Mapping):
-        raise _fail(path, "recipe", "a recipe is a mapping of keys to values")
+        raise fail(path, "recipe", "a recipe is a mapping of keys to values")
     unknown = set(data) - set(TOP_KEYS)
     if unknown:
-        raise _fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(TOP_KEYS)}")
+        raise fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(TOP_KEYS)}")
     for required in ("name", "xacro"):
         if not data.get(required):
-            raise _fail(path, required, "is required")
+            raise fail(path, required, "is required")
     flags = dict(data.get("flags") or {})
     placements = {
         name: _pose(value, path, f"placements.{name}")
@@ -161,31 +147,31 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
     jitter = {}
     for key, value in (data.get("jitter") or {}).items():
         if key not in JITTER_KEYS:
-            raise _fail(path, f"jitter.{key}", f"unknown key; valid: {', '.join(JITTER_KEYS)}")
-        jitter[key] = _number(value, path, f"jitter.{key}")
+            raise fail(path, f"jitter.{key}", f"unknown key; valid: {', '.join(JITTER_KEYS)}")
+        jitter[key] = number(value, path, f"jitter.{key}")
         if jitter[key] < 0:
-            raise _fail(path, f"jitter.{key}", "a jitter range is >= 0")
+            raise fail(path, f"jitter.{key}", "a jitter range is >= 0")
     simulation = dict(data.get("simulation") or {})
     for key, value in simulation.items():
         where = f"simulation.{key}"
         if key not in SIMULATION_KEYS:
-            raise _fail(path, where, f"unknown key; valid: {', '.join(SIMULATION_KEYS)}")
+            raise fail(path, where, f"unknown key; valid: {', '.join(SIMULATION_KEYS)}")
         if key in SIMULATION_CHOICES:
             if str(value) not in SIMULATION_CHOICES[key]:
                 valid = ", ".join(SIMULATION_CHOICES[key])
-                raise _fail(path, where, f"'{value}' is not one of {valid}")
-        elif _number(value, path, where) <= 0:
-            raise _fail(path, where, "must be > 0")
+                raise fail(path, where, f"'{value}' is not one of {valid}")
+        elif number(value, path, where) <= 0:
+            raise fail(path, where, "must be > 0")
     components = {}
     for cname, spec in (data.get("components") or {}).items():
         where = f"components.{cname}"
         if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
-            raise _fail(
+            raise fail(
                 path, where, "needs asset and standalone (and optionally flag, prefix, roles)"
             )
         unknown = set(spec) - set(COMPONENT_KEYS)
         if unknown:
-            raise _fail(
+            raise fail(
                 path,
                 where,
                 f"unknown key(s) {', '.join(sorted(unknown))}; valid: {', '.join(COMPONENT_KEYS)}",

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from .values import fail, number
 
 ROCK_KEYS = ("count", "seed", "area", "size", "clearance", "keepout", "variants", "z")
 DEFAULTS: dict[str, Any] = {
@@ -61,22 +62,13 @@ class Rock:
 
 
 def _fail(path: Path | None, key: str, message: str) -> InputError:
-    return InputError(message, file=path or "recipe", element=f"rocks.{key}")
+    return fail(path, f"rocks.{key}", message)
 
 
 def _numbers(value: Any, n: int, path: Path | None, key: str) -> list[float]:
     if not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, key, f"needs {n} numbers")
-    out = []
-    for v in value:
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise _fail(path, key, f"'{v}' is not a number") from None
-        if not math.isfinite(x):
-            raise _fail(path, key, f"'{v}' is not finite")
-        out.append(x)
-    return out
+    return [number(v, path, f"rocks.{key}") for v in value]
 
 
 def parse_rocks(data: Any, path: Path | None) -> dict[str, Any]:

@@ -15,7 +15,8 @@ class LoadError(RuntimeError):
     """The facility lacks something the runner needs (a file, a role, a name)."""
 
 
-def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+def lookup(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
+    """The id of a named object; LoadError naming what is missing."""
     i = mujoco.mj_name2id(m, kind, name)
     if i < 0:
         raise LoadError(f"the facility has no {kind.name[6:].lower()} named '{name}'")
@@ -62,10 +63,10 @@ class Facility:
         return {b for b in range(1, m.nbody) if prefix and m.body(b).name.startswith(prefix)}
 
     def body(self, name: str) -> int:
-        return _id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        return lookup(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
 
     def joint(self, name: str) -> int:
-        return _id(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        return lookup(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)
 
     def q(self) -> np.ndarray:
         """The robot's joint positions (manifest order)."""
@@ -99,16 +100,16 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
     if not roles:
         raise LoadError("facility.json lists no robot roles (was it built with robot=none?)")
     J = mujoco.mjtObj
-    joints = np.array([_id(m, J.mjOBJ_JOINT, n) for n in roles["joints"]])
-    acts = np.array([_id(m, J.mjOBJ_ACTUATOR, n) for n in roles["actuators"]])
+    joints = np.array([lookup(m, J.mjOBJ_JOINT, n) for n in roles["joints"]])
+    acts = np.array([lookup(m, J.mjOBJ_ACTUATOR, n) for n in roles["actuators"]])
     for j, a in zip(joints, acts, strict=True):
         if m.actuator_trnid[a, 0] != j:
             raise LoadError(
                 f"actuator '{m.actuator(a).name}' does not drive joint '{m.joint(j).name}'"
             )
     grip = roles["gripper"]
-    sites = {k: _id(m, J.mjOBJ_SITE, v) for k, v in roles["sites"].items()}
-    cams = {k: _id(m, J.mjOBJ_CAMERA, v) for k, v in roles["cameras"].items()}
+    sites = {k: lookup(m, J.mjOBJ_SITE, v) for k, v in roles["sites"].items()}
+    cams = {k: lookup(m, J.mjOBJ_CAMERA, v) for k, v in roles["cameras"].items()}
     root = int(m.body_rootid[m.jnt_bodyid[joints[0]]])
     robot = Robot(
         joint_names=list(roles["joints"]),
@@ -118,8 +119,8 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
         actuators=acts,
         lower=m.jnt_range[joints, 0].copy(),
         upper=m.jnt_range[joints, 1].copy(),
-        gripper_actuator=_id(m, J.mjOBJ_ACTUATOR, grip["actuator"]),
-        gripper_joints=np.array([_id(m, J.mjOBJ_JOINT, n) for n in grip["joints"]]),
+        gripper_actuator=lookup(m, J.mjOBJ_ACTUATOR, grip["actuator"]),
+        gripper_joints=np.array([lookup(m, J.mjOBJ_JOINT, n) for n in grip["joints"]]),
         gripper_open=float(grip["open"]),
         gripper_closed=float(grip["closed"]),
         sites=sites,

@@ -44,19 +44,21 @@ import click
 import mujoco
 import numpy as np
 
+from .load import LoadError, lookup
+
 HOLD_GAIN = 10.0
 """Wheel hold (brake): commanded wheel speed per radian of wheel drift, 1/s."""
 
 
-class RoverError(RuntimeError):
+class RoverError(LoadError):
     """The facility lacks something the rover runner needs."""
 
 
 def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
-    i = mujoco.mj_name2id(m, kind, name)
-    if i < 0:
-        raise RoverError(f"the facility has no {kind.name[6:].lower()} named '{name}'")
-    return i
+    try:
+        return lookup(m, kind, name)
+    except LoadError as exc:
+        raise RoverError(str(exc)) from None
 
 
 def _sensor_adr(m: mujoco.MjModel, name: str) -> int:

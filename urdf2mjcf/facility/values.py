@@ -1,0 +1,24 @@
+"""Checked values from recipe files: one error shape (file and key) for every field."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+
+
+def fail(path: Path | None, key: str, message: str) -> InputError:
+    return InputError(message, file=path or "recipe", element=key)
+
+
+def number(value: Any, path: Path | None, key: str) -> float:
+    """A finite float, or an InputError naming the file and the key."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise fail(path, key, f"'{value}' is not a number") from None
+    if not math.isfinite(x):
+        raise fail(path, key, f"'{value}' is not finite")
+    return x
