@@ -201,3 +201,25 @@ def test_dae_material_becomes_a_mujoco_material(tmp_path):
     assert all(c[:3] != (0.5, 0.5, 0.5) for c in colours)
     sphere = [g for g in visual if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE][0]
     np.testing.assert_allclose(m.mat_rgba[m.geom_matid[sphere]], [0.1, 0.8, 0.2, 1], rtol=1e-6)
+
+
+def test_height_field_from_the_mujoco_extension_loads_through_scene_include(tmp_path):
+    from PIL import Image
+
+    Image.fromarray((np.arange(64, dtype=np.uint8).reshape(8, 8) * 4)).save(
+        tmp_path / "terrain.png"
+    )
+    src = tmp_path / "ground.urdf"
+    src.write_text(
+        """<robot name="ground">
+  <link name="world"/>
+  <mujoco>
+    <asset><hfield name="terrain" file="terrain.png" size="2 2 0.3 0.1"/></asset>
+    <worldbody><geom name="terrain" type="hfield" hfield="terrain"/></worldbody>
+  </mujoco>
+</robot>"""
+    )
+    out = tmp_path / "out" / "ground.xml"
+    urdf2mjcf.convert(src, out, use_environment=False)
+    m = mujoco.MjModel.from_xml_path(str(out.parent / "scene.xml"))
+    assert m.nhfield == 1 and m.hfield_nrow[0] == 8

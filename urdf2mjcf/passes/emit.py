@@ -453,6 +453,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         angle="radian",
         meshdir=cfg.meshdir,
         texturedir=cfg.meshdir,
+        assetdir=cfg.meshdir,  # height fields: MuJoCo finds them through assetdir when included
         autolimits="true",
         inertiafromgeom="false",  # inertials are ours: from the URDF, repaired or estimated
     )
