@@ -105,8 +105,12 @@ def _combine(a: BodyInertial | None, b: BodyInertial | None, t: np.ndarray) -> B
         return inertia + mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
 
     total = shifted(_mat(a.fullinertia), a.mass, np.array(a.pos)) + shifted(ib, b.mass, com_b)
-    source = "urdf" if a.source == b.source == "urdf" else "repaired"
-    return BodyInertial(m, vec3(com), mujoco_fullinertia(total), source)
+    return BodyInertial(
+        m,
+        vec3(com),
+        mujoco_fullinertia(total),
+        "urdf" if a.source == b.source == "urdf" else "repaired",
+    )
 
 
 def _mat(fi: tuple[float, ...]) -> np.ndarray:
@@ -263,12 +267,12 @@ def _joint_elements(
             return [(joint.name, "free", 0.0)]
         # Free joints are only allowed on top-level bodies: three slides and a ball.
         out = []
-        for suffix, ax in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1))):
+        for suffix, unit in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1))):
             _set(
                 etree.SubElement(body_el, "joint"),
                 name=f"{joint.name}_{suffix}",
                 type="slide",
-                axis=ax,
+                axis=unit,
                 **common,
             )
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
@@ -280,12 +284,12 @@ def _joint_elements(
         u /= np.linalg.norm(u)
         v = np.cross(n, u)
         out = []
-        for suffix, ax, kind in (("x", u, "slide"), ("y", v, "slide"), ("rot", n, "hinge")):
+        for suffix, direction, kind in (("x", u, "slide"), ("y", v, "slide"), ("rot", n, "hinge")):
             _set(
                 etree.SubElement(body_el, "joint"),
                 name=f"{joint.name}_{suffix}",
                 type=kind,
-                axis=vec3(ax),
+                axis=vec3(direction),
                 **common,
             )
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
@@ -524,6 +528,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     if mimics:
         equality = etree.SubElement(mj, "equality")
         for j in mimics:
+            assert j.mimic is not None
             _set(
                 etree.SubElement(equality, "joint"),
                 name=f"{j.name}_mimic",

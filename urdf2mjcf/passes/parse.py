@@ -74,10 +74,17 @@ class _Reader:
             raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not finite")
         return values
 
+    def optional(self, el: etree._Element, attr: str, where: str) -> float | None:
+        """An optional number: None when the attribute is absent."""
+        if el.get(attr) is None:
+            return None
+        return self.floats(el, attr, 1, where)[0]
+
     def scalar(
         self, el: etree._Element, attr: str, where: str, default: float | None = None
-    ) -> float | None:
-        if el.get(attr) is None:
+    ) -> float:
+        """A number: ``default`` when absent, else an error naming the missing attribute."""
+        if el.get(attr) is None and default is not None:
             return default
         return self.floats(el, attr, 1, where)[0]
 
@@ -99,14 +106,14 @@ class _Reader:
             return Cylinder(
                 radius=self.scalar(shape, "radius", where),
                 length=self.scalar(shape, "length", where),
-            )  # type: ignore[arg-type]
+            )
         if kind == "sphere":
-            return Sphere(radius=self.scalar(shape, "radius", where))  # type: ignore[arg-type]
+            return Sphere(radius=self.scalar(shape, "radius", where))
         if kind == "capsule":
             return Capsule(
                 radius=self.scalar(shape, "radius", where),
                 length=self.scalar(shape, "length", where),
-            )  # type: ignore[arg-type]
+            )
         if kind == "mesh":
             filename = shape.get("filename")
             if not filename:
@@ -118,7 +125,7 @@ class _Reader:
                 ]  # a single number is used by some tools
                 scale = (s, s, s)
             else:
-                scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))
+                scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))  # type: ignore[assignment]
             path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
             return MeshRef(filename=filename, path=path, scale=tuple(v + 0.0 for v in scale))  # type: ignore[arg-type]
         raise self.fail(
@@ -153,7 +160,7 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
         if tel is None:
             inertia = (0.0,) * 6
         else:
-            inertia = tuple(
+            inertia = tuple(  # type: ignore[assignment]  # six names, six numbers
                 r.scalar(tel, k, where, 0.0) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
             )
         inertial = Inertial(
@@ -208,10 +215,10 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
     lel = el.find("limit")
     if lel is not None:
         limit = Limit(
-            lower=r.scalar(lel, "lower", where),
-            upper=r.scalar(lel, "upper", where),
-            effort=r.scalar(lel, "effort", where),
-            velocity=r.scalar(lel, "velocity", where),
+            lower=r.optional(lel, "lower", where),
+            upper=r.optional(lel, "upper", where),
+            effort=r.optional(lel, "effort", where),
+            velocity=r.optional(lel, "velocity", where),
         )
     dynamics = None
     del_ = el.find("dynamics")
@@ -259,9 +266,9 @@ def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> Non
         if j.name in joint_names:
             raise r.fail(f"joint '{j.name}'", "is defined twice; joint names must be unique")
         joint_names.add(j.name)
-        for role, link in (("parent", j.parent), ("child", j.child)):
-            if link not in names:
-                raise r.fail(f"joint '{j.name}'", f"{role} link '{link}' does not exist")
+        for role, end in (("parent", j.parent), ("child", j.child)):
+            if end not in names:
+                raise r.fail(f"joint '{j.name}'", f"{role} link '{end}' does not exist")
         if j.child in parent_of:
             raise r.fail(
                 f"joint '{j.name}'",

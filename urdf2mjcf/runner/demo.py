@@ -104,7 +104,7 @@ class Demo:
         self.frames = Path(frames) if frames else None
         self.log = log
         self._cams: dict[int, perception.Camera] = {}
-        self._scene_renderer = None
+        self._scene_renderer: mujoco.Renderer | None = None
 
     # ------------------------------------------------------------ helpers
     def camera(self, role: str) -> perception.Camera:
@@ -165,7 +165,7 @@ class Demo:
         self, poses: list[tuple[np.ndarray, np.ndarray]], q0: np.ndarray, spacing: float = 0.01
     ) -> np.ndarray:
         """Dense IK along straight segments between poses (position and rotation)."""
-        path = [q0]
+        path: list[np.ndarray] = [q0]
         p_prev, R_prev = ik.site_pose(self.m, self.d, self.site, q0, self.r.qpos)
         q = q0
         for p, R in poses:
@@ -183,11 +183,11 @@ class Demo:
                 q = self.ik(p_prev + s * (p - p_prev), Rk.reshape(3, 3), q0=q)
                 path.append(q)
             p_prev, R_prev = p, R
-        path = np.array(path)
-        jump = np.abs(np.diff(path, axis=0)).max(axis=0) if len(path) > 1 else 0
+        joints = np.array(path)
+        jump = np.abs(np.diff(joints, axis=0)).max(axis=0) if len(joints) > 1 else 0
         if np.any(jump > 0.5):
             raise StepError("the Cartesian path jumps in joint space (a branch change of the IK)")
-        return path
+        return joints
 
     # ------------------------------------------------------------ steps
     def run_step(self, step: dict) -> None:

@@ -39,7 +39,7 @@ class ContactJudge:
         self.log = ContactLog()
 
     def begin(self, allowed: list[list[str]] | None, carried: bool) -> None:
-        self.allowed = [tuple(p) for p in (allowed or [])]
+        self.allowed = [(p[0], p[1]) for p in (allowed or [])]
         self.carried = carried
         self.log = ContactLog()
 
@@ -66,7 +66,7 @@ class ContactJudge:
             if not involved:
                 continue
             n1, n2 = m.body(b1).name or "world", m.body(b2).name or "world"
-            pair = tuple(sorted((n1, n2)))
+            pair = (n1, n2) if n1 <= n2 else (n2, n1)
             if self._match(n1, n2):
                 self.log.intended.add(pair)
             else:

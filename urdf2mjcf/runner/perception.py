@@ -128,8 +128,10 @@ def find_handle(
     z = float(np.median(depth[mask]))
     p = backproject(m, d, cam, seg.centroid[0], seg.centroid[1], z, size)
     half = 0.25 * seg.length_px
-    a = backproject(m, d, cam, *(seg.centroid - half * seg.axis), z, size)
-    b = backproject(m, d, cam, *(seg.centroid + half * seg.axis), z, size)
+    ua, va = seg.centroid - half * seg.axis
+    ub, vb = seg.centroid + half * seg.axis
+    a = backproject(m, d, cam, ua, va, z, size)
+    b = backproject(m, d, cam, ub, vb, z, size)
     ax = b - a
     ax[2] = 0.0
     ax /= np.linalg.norm(ax)

@@ -258,7 +258,7 @@ class Straight(Task):
         self._stopping = False
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float, float]:
+    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
         odo = sim.odometry[rover.name]
         sign = 1.0 if self.distance >= 0 else -1.0
         remaining = abs(self.distance) - sign * (odo.distance - self._d0)
@@ -290,7 +290,7 @@ class Turn(Task):
         self._stopping = False
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float, float]:
+    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
         odo = sim.odometry[rover.name]
         turned = (odo.turned_imu if self.imu else odo.turned) - self._a0
         sign = 1.0 if self.angle >= 0 else -1.0
@@ -313,7 +313,7 @@ class Hold(Task):
         self._t_end = sim.d.time + self.duration
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float, float]:
+    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
         self.done = sim.d.time >= self._t_end - 1e-9
         return None, 0.0
 
@@ -605,11 +605,11 @@ class RoverSim:
                 late = ", ".join(n for n in tasks if n not in out)
                 raise RoverError(f"{late}: not done after {timeout:g} s")
             for name, r in self.rovers.items():
-                task = tasks.get(name)
-                if task is None or name in out:
+                current = tasks.get(name)
+                if current is None or name in out:
                     self.brake(r)
                     continue
-                self.drive(r, *task.command(self, r))
+                self.drive(r, *current.command(self, r))
                 if name in arm:
                     self.arm_targets[name] = arm[name].targets(self.home[name], self.d.time - t0)
             self.step()
