@@ -87,6 +87,17 @@ CASES = {
         "joint 's'",
         errors.URDFError,
     ),
+    "cylinder_without_radius": (
+        "robot.urdf",
+        robot(
+            LINK.format(n="a").replace(
+                "</link>",
+                '<collision><geometry><cylinder length="0.1"/></geometry></collision></link>',
+            )
+        ),
+        "radius",
+        errors.URDFError,
+    ),
     "negative_mass": (
         "robot.urdf",
         robot(LINK.format(n="a").replace('value="1"', 'value="-2"')),
