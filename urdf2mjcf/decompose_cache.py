@@ -30,6 +30,7 @@ CACHE_FORMAT = 1
 """Bump when the stored layout or the processing around CoACD changes."""
 
 _SUBDIR = "coacd"
+_GAP_SUBDIR = "hull_gap"
 
 
 def default_cache_dir() -> Path:
@@ -113,16 +114,36 @@ class DecompositionCache:
             arrays[f"v{i}"] = np.ascontiguousarray(part.vertices, dtype="<f8")
             arrays[f"f{i}"] = np.ascontiguousarray(part.faces, dtype="<i8")
         np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub confuses **kwds with allow_pickle
+        self._write(self.dir, f"{key}.npz", buf.getvalue())
+
+    def load_gap(self, key: str) -> float | None:
+        """A stored hull gap (the convexity test is the slow part of a warm run)."""
+        try:
+            data = json.loads((self.dir.parent / _GAP_SUBDIR / f"{key}.json").read_text())
+            return float(data["gap"]) if data.get("key") == key else None
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+
+    def store_gap(self, key: str, gap: float) -> None:
+        self._write(
+            self.dir.parent / _GAP_SUBDIR,
+            f"{key}.json",
+            json.dumps({"key": key, "gap": gap}).encode(),
+        )
+
+    @staticmethod
+    def _write(folder: Path, name: str, data: bytes) -> None:
+        """Temp file then os.replace: readers only ever see whole files. Failures are logged."""
         tmp_name = None
         try:
-            self.dir.mkdir(parents=True, exist_ok=True)
-            fd, tmp_name = tempfile.mkstemp(dir=self.dir, prefix=f".{key[:16]}.", suffix=".tmp")
+            folder.mkdir(parents=True, exist_ok=True)
+            fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{name[:16]}.", suffix=".tmp")
             with os.fdopen(fd, "wb") as fh:
-                fh.write(buf.getvalue())
-            os.replace(tmp_name, self.path(key))
+                fh.write(data)
+            os.replace(tmp_name, folder / name)
             tmp_name = None
         except OSError as exc:
-            logger.warning("cannot write cache entry in %s: %s", self.dir, exc)
+            logger.warning("cannot write cache entry in %s: %s", folder, exc)
         finally:
             if tmp_name is not None:
                 try:

@@ -405,6 +405,23 @@ def test_second_run_takes_decompositions_from_the_cache(build, cfg, monkeypatch)
     assert snapshot(second)[:2] == snapshot(first)[:2]
 
 
+def test_second_run_takes_the_convexity_test_from_the_cache_too(build, cfg, monkeypatch):
+    model = build.model(
+        Link("bracket", collisions=(col(build.mesh("u.stl", u_shape())),)),
+        Link(
+            "block", collisions=(col(build.mesh("b.stl", trimesh.creation.box((0.1, 0.1, 0.1)))),)
+        ),
+    )
+    first = collision.run(model, cfg)
+
+    def boom(mesh):
+        raise AssertionError("the hull gap must come from the cache")
+
+    monkeypatch.setattr(collision, "hull_fit", boom)
+    second = collision.run(model, cfg)
+    assert snapshot(second)[:2] == snapshot(first)[:2], "same geoms and assets"
+
+
 def test_corrupt_cache_entry_is_ignored_and_rewritten(build, cfg):
     model = build.model(Link("bracket", collisions=(col(build.mesh("u.stl", u_shape())),)))
     first = collision.run(model, cfg)

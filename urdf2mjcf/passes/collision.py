@@ -31,7 +31,16 @@ from typing import Literal
 import numpy as np
 
 from ..assets import merge_assets, mesh_asset, safe_stem
-from ..convexity import as_trimesh, convex_hull, flat_box, hull_fit
+from ..convexity import (
+    CANDIDATES,
+    HULL_SAMPLES,
+    MESH_SAMPLES,
+    HullFit,
+    as_trimesh,
+    convex_hull,
+    flat_box,
+    hull_fit,
+)
 from ..decompose_cache import DecompositionCache, array_digest, cache_key, default_cache_dir
 from ..errors import MeshError
 from ..geometry import primitive_geom
@@ -288,6 +297,10 @@ def _job_plan(job: _Job, parts: list[MeshData] | None, notes: list[Note]) -> _Pl
     return _Plan("hull", job.label, job.stem, pieces=(job.hull,))
 
 
+GAP_PARAMS = {"hull_samples": HULL_SAMPLES, "mesh_samples": MESH_SAMPLES, "candidates": CANDIDATES}
+"""What a cached hull gap depends on besides the mesh."""
+
+
 def _classify(
     loaded: LoadedMesh,
     ref: MeshRef,
@@ -303,7 +316,14 @@ def _classify(
     if len(mesh.faces) == 0:
         notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
         return _Plan("none", label, stem)
-    fit = hull_fit(mesh)
+    gap_key = cache_key(loaded.sha256, "hull-gap", GAP_PARAMS)
+    cached_gap = cache.load_gap(gap_key) if cache is not None else None
+    if cached_gap is not None:
+        fit = HullFit(hull=convex_hull(mesh.vertices), gap=cached_gap, diagonal=0.0)
+    else:
+        fit = hull_fit(mesh)
+        if cache is not None and fit.hull is not None:
+            cache.store_gap(gap_key, fit.gap)
     if fit.hull is None:
         notes.append(
             Note("warning", label, f"mesh is flat; using a {FLAT_THICKNESS * 1e3:g} mm thick box")
