@@ -206,9 +206,7 @@ def test_dae_material_becomes_a_mujoco_material(tmp_path):
 def test_height_field_from_the_mujoco_extension_loads_through_scene_include(tmp_path):
     from PIL import Image
 
-    Image.fromarray((np.arange(64, dtype=np.uint8).reshape(8, 8) * 4)).save(
-        tmp_path / "terrain.png"
-    )
+    Image.fromarray(np.arange(64, dtype=np.uint8).reshape(8, 8) * 4).save(tmp_path / "terrain.png")
     src = tmp_path / "ground.urdf"
     src.write_text(
         """<robot name="ground">

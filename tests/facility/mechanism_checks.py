@@ -203,3 +203,22 @@ def collision_bounds(m: mujoco.MjModel, d: mujoco.MjData, body: str) -> np.ndarr
             raise AssertionError(f"unexpected collision geom type {m.geom_type[g]} on {body}")
         lo, hi = np.minimum(lo, p - half), np.maximum(hi, p + half)
     return np.array([lo, hi])
+
+
+def dh_flange(q, d, a, alpha) -> np.ndarray:
+    """(4, 4) flange pose in the base frame from standard DH parameters,
+    Rz(theta) Tz(d) Tx(a) Rx(alpha) per joint: an independent reference for UR arms."""
+    import math
+
+    t = np.eye(4)
+    for theta, di, ai, al in zip(q, d, a, alpha, strict=True):
+        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(al), math.sin(al)
+        t = t @ np.array(
+            [
+                [ct, -st * ca, st * sa, ai * ct],
+                [st, ct * ca, -ct * sa, ai * st],
+                [0, sa, ca, di],
+                [0, 0, 0, 1],
+            ]
+        )
+    return t

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import urdf2mjcf
+from tests.facility.mechanism_checks import dh_flange
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "facility" / "robots" / "imetro_robot"
@@ -186,19 +187,7 @@ def _no_warnings(d: mujoco.MjData) -> None:
 
 
 def _dh(q) -> np.ndarray:
-    """Flange pose in the UR base frame, standard DH: Rz(theta) Tz(d) Tx(a) Rx(alpha)."""
-    t = np.eye(4)
-    for theta, d, a, alpha in zip(q, DH_D, DH_A, DH_ALPHA, strict=True):
-        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-        t = t @ np.array(
-            [
-                [ct, -st * ca, st * sa, a * ct],
-                [st, ct * ca, -ct * sa, a * st],
-                [0, sa, ca, d],
-                [0, 0, 0, 1],
-            ]
-        )
-    return t
+    return dh_flange(q, DH_D, DH_A, DH_ALPHA)
 
 
 def _subtree_mass(m: mujoco.MjModel, body: str) -> float:

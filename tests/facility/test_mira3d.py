@@ -20,6 +20,7 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
+from tests.facility.mechanism_checks import dh_flange
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe, parse_recipe
@@ -196,18 +197,7 @@ def test_wheels_are_continuous_velocity_driven_and_the_arm_position_driven(built
 
 
 def _dh(q) -> np.ndarray:
-    t = np.eye(4)
-    for theta, d, a, alpha in zip(q, DH_D, DH_A, DH_ALPHA, strict=True):
-        ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
-        t = t @ np.array(
-            [
-                [ct, -st * ca, st * sa, a * ct],
-                [st, ct * ca, -ct * sa, a * st],
-                [0, sa, ca, d],
-                [0, 0, 0, 1],
-            ]
-        )
-    return t
+    return dh_flange(q, DH_D, DH_A, DH_ALPHA)
 
 
 @pytest.mark.parametrize(
