@@ -1,6 +1,6 @@
 """Find ROS packages and resolve resource URIs without a ROS installation.
 
-Lookup order for a package name (first hit wins):
+Lookup order for a package name (first hit wins; docs/cli.md has the user's view):
 
 1. ``--package NAME=DIR`` given explicitly;
 2. ``--package-path DIR``: each sub-folder of DIR is a package, known by its
@@ -8,9 +8,24 @@ Lookup order for a package name (first hit wins):
    itself a package counts too;
 3. ``ROS_PACKAGE_PATH`` (same rule as ``--package-path``);
 4. ``AMENT_PREFIX_PATH``: ``<prefix>/share/<name>``;
-5. walking up from the source file: an ancestor folder holding a
-   ``package.xml`` is that package; an ancestor folder whose name is the
-   package name is accepted too (descriptions vendored without package.xml).
+5. the package that encloses the source: an ancestor folder whose
+   ``package.xml`` names it, or whose folder name is the package name.
+
+When none of these knows the name, fallbacks guess from the files people
+actually ship. Each guess is recorded in :attr:`PackageResolver.notes` (the
+parse pass turns them into warnings) and is an error when ``strict``:
+
+6. a folder of that name beside the source or beside one of its ancestors
+   (``package://meshes/x.stl`` with a ``meshes`` folder next to the URDF);
+7. for a file (:meth:`PackageResolver.resolve` only): the same relative path
+   inside the source's own package (nearest ancestor with ``package.xml``,
+   else each ancestor, nearest first), for descriptions whose package was
+   renamed (``abb_irb140_support`` URIs inside ``abb_irb140_description``);
+8. for a file: a folder of that name a few levels below the source's own package
+   that holds the relative path (URIs whose real package prefix was cut off,
+   ``package://visual/base_link.dae``).
+
+A file found by none of these is an error naming the URI.
 """
 
 from __future__ import annotations
@@ -27,6 +42,11 @@ from .errors import PackageNotFoundError
 
 _NAME_RE = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
 
+DEEP_SEARCH_DEPTH = 5
+"""How far below the own package fallback 8 looks (``meshes/<model>/visual`` is 3)."""
+DEEP_SEARCH_MAX_DIRS = 20_000
+"""Stop indexing a tree this large: the guess is not worth a long walk."""
+
 
 def _package_xml_name(folder: Path) -> str | None:
     try:
@@ -35,6 +55,22 @@ def _package_xml_name(folder: Path) -> str | None:
         return None
     match = _NAME_RE.search(text)
     return match.group(1).decode() if match else None
+
+
+def _subdirs(folder: Path) -> list[Path]:
+    """Sorted sub-folders (no hidden ones, no symlink loops); [] if unreadable."""
+    try:
+        entries = sorted(os.scandir(folder), key=lambda e: e.name)
+    except OSError:
+        return []
+    out = []
+    for entry in entries:
+        try:
+            if not entry.name.startswith(".") and entry.is_dir(follow_symlinks=False):
+                out.append(Path(entry.path))
+        except OSError:
+            continue
+    return out
 
 
 def _scan(dirs: Sequence[Path]) -> dict[str, Path]:
@@ -58,6 +94,23 @@ def _env_dirs(var: str) -> list[Path]:
     return [Path(p) for p in os.environ.get(var, "").split(os.pathsep) if p]
 
 
+def _index_tree(root: Path) -> dict[str, list[Path]]:
+    """Folder name -> folders below ``root``, breadth first, sorted within a level."""
+    index: dict[str, list[Path]] = {}
+    level, seen = [root], 0
+    for _ in range(DEEP_SEARCH_DEPTH):
+        next_level = []
+        for folder in level:
+            for sub in _subdirs(folder):
+                index.setdefault(sub.name, []).append(sub)
+                next_level.append(sub)
+                seen += 1
+                if seen >= DEEP_SEARCH_MAX_DIRS:
+                    return index
+        level = next_level
+    return index
+
+
 @dataclass(frozen=True)
 class PackageResolver:
     """Maps package names to folders and resource URIs to files."""
@@ -67,6 +120,14 @@ class PackageResolver:
     packages: Mapping[str, Path] = field(default_factory=dict)
     package_paths: tuple[Path, ...] = ()
     use_environment: bool = True
+    strict: bool = False
+    """A fallback guess (steps 6-8) is an error instead of a note."""
+    notes: list[tuple[str, str]] = field(default_factory=list, compare=False, repr=False)
+    """``(element, message)`` for each guess made, once per package and folder."""
+    _memo: dict = field(default_factory=dict, init=False, compare=False, repr=False)
+    """Resolved URIs and directory probes: each is looked at once per conversion."""
+
+    # -- what is on disk (cached) ------------------------------------------
 
     @cached_property
     def _indexed(self) -> dict[str, Path]:
@@ -82,44 +143,156 @@ class PackageResolver:
                         found.setdefault(folder.name, folder.resolve())
         return found
 
-    def find(self, name: str, *, element: str | None = None) -> Path:
-        """The folder of package ``name``; PackageNotFoundError if unknown."""
+    @cached_property
+    def _ancestors(self) -> tuple[Path, ...]:
+        """The source's folder, its parent, ... up to the file-system root."""
+        return tuple(self.source.resolve().parents)
+
+    def _xml_name(self, folder: Path) -> str | None:
+        key = ("xml", folder)
+        if key not in self._memo:
+            self._memo[key] = _package_xml_name(folder)
+        return self._memo[key]
+
+    @cached_property
+    def _own_package(self) -> Path | None:
+        """The nearest ancestor with a ``package.xml``: the package holding the source."""
+        return next((a for a in self._ancestors if (a / "package.xml").is_file()), None)
+
+    @cached_property
+    def _tree(self) -> tuple[Path, dict[str, list[Path]]]:
+        """Every folder below the own package (else below the source folder's parent)."""
+        ancestors = self._ancestors
+        root = self._own_package or (ancestors[1] if len(ancestors) > 1 else ancestors[0])
+        return root, _index_tree(root)
+
+    def _beside(self, name: str) -> list[Path]:
+        """Folders called ``name`` beside the source or beside an ancestor, nearest first."""
+        key = ("beside", name)
+        if key not in self._memo:
+            self._memo[key] = [a / name for a in self._ancestors if (a / name).is_dir()]
+        return self._memo[key]
+
+    # -- lookup ------------------------------------------------------------
+
+    def _exact(self, name: str) -> Path | None:
+        """Steps 1-5: the package itself, no guessing."""
         if name in self.packages:
             return Path(self.packages[name]).resolve()
         if name in self._indexed:
             return self._indexed[name]
-        for ancestor in self.source.resolve().parents:
-            if ancestor.name == name or _package_xml_name(ancestor) == name:
+        for ancestor in self._ancestors:
+            if ancestor.name == name or self._xml_name(ancestor) == name:
                 return ancestor
-        raise PackageNotFoundError(
-            f"package '{name}' not found; pass --package {name}=DIR or --package-path "
+        return None
+
+    def _guess(self, key: tuple, element: str | None, message: str) -> None:
+        """Record a fallback once; with ``strict`` it is an error instead."""
+        if self.strict:
+            raise PackageNotFoundError(
+                f"{message}; --strict allows no such guess: pass --package or --package-path",
+                file=self.source,
+                element=element,
+            )
+        if key not in self._memo:
+            self._memo[key] = True
+            self.notes.append((element or "package", message))
+
+    def _not_found(self, name: str, element: str | None, extra: str = "") -> PackageNotFoundError:
+        return PackageNotFoundError(
+            f"package '{name}' not found{extra}; pass --package {name}=DIR or --package-path "
             "with the folder that contains it",
             file=self.source,
             element=element,
         )
 
-    def resolve(self, uri: str, *, element: str | None = None, base: Path | None = None) -> Path:
-        """Resolve ``package://``, ``file://``, absolute and relative references.
+    def find(self, name: str, *, element: str | None = None) -> Path:
+        """The folder of package ``name`` (steps 1-6); PackageNotFoundError if unknown."""
+        found = self._exact(name)
+        if found is not None:
+            return found
+        beside = self._beside(name)
+        if not beside:
+            raise self._not_found(name, element)
+        return self._use_beside(name, beside[0], element)
 
-        ``package:///pkg/x`` (three slashes, seen in the wild) is read as
-        ``package://pkg/x``. Relative paths are relative to ``base`` (default:
-        the source file's folder). The file need not exist.
+    def _use_beside(self, name: str, folder: Path, element: str | None) -> Path:
+        where = "the source" if folder.parent == self._ancestors[0] else "an ancestor of the source"
+        message = f"package '{name}' is on no package path; using the folder {folder}"
+        self._guess(("guess", name, folder), element, f"{message} beside {where}")
+        return folder
+
+    def _package_file(self, name: str, relative: str, element: str | None) -> Path:
+        """``package://name/relative``: steps 1-5, else the first guess where the file exists."""
+        found = self._exact(name)
+        if found is not None:
+            return found / relative  # the package exists; a missing file is the mesh pass's call
+        for folder in self._beside(name):
+            if (folder / relative).is_file():
+                return self._use_beside(name, folder, element) / relative
+        if relative:
+            own = self._own_package
+            for home in (own,) if own is not None else self._ancestors:
+                if (home / relative).is_file():
+                    label = self._xml_name(home) if own is not None else None
+                    what = f"package '{label}'" if label else "the folder"
+                    self._guess(
+                        ("guess", name, home),
+                        element,
+                        f"package '{name}' not found; using the same paths inside {what} "
+                        f"({home}), which holds the source",
+                    )
+                    return home / relative
+            root, tree = self._tree
+            for folder in tree.get(name, ()):
+                if (folder / relative).is_file():
+                    self._guess(
+                        ("guess", name, folder),
+                        element,
+                        f"package '{name}' not found; using the folder {folder} "
+                        f"(below {root}), which holds '{relative}'",
+                    )
+                    return folder / relative
+        raise self._not_found(name, element, f" and no folder near the source holds '{relative}'")
+
+    def resolve(self, uri: str, *, element: str | None = None, base: Path | None = None) -> Path:
+        """Resolve ``package://``, ``model://``, ``file://``, absolute and relative references.
+
+        Odd forms seen in the wild: ``package:///pkg/x`` is ``package://pkg/x``
+        unless ``/pkg/x`` is an existing absolute file; ``package://./x`` and
+        ``file://x`` (no third slash) are relative. Relative paths are
+        relative to ``base`` (default: the source file's folder). A file under
+        a known package need not exist; one found by a fallback does.
         """
         base = base or self.source.resolve().parent
-        if uri.startswith("package://"):
-            rest = uri[len("package://") :].lstrip("/")
-            name, _, relative = rest.partition("/")
-            if not name:
-                raise PackageNotFoundError(
-                    f"malformed package URI '{uri}'", file=self.source, element=element
-                )
-            return self.find(name, element=element) / unquote(relative)
-        if uri.startswith("file://"):
-            return Path(unquote(uri[len("file://") :]))
-        if uri.startswith("model://"):
-            # Gazebo model URIs name a folder on GAZEBO_MODEL_PATH; treat like a package.
-            rest = uri[len("model://") :].lstrip("/")
-            name, _, relative = rest.partition("/")
-            return self.find(name, element=element) / unquote(relative)
+        key = ("uri", uri, base)
+        if key not in self._memo:
+            self._memo[key] = self._resolve(uri, element, base)
+        return self._memo[key]
+
+    def _resolve(self, uri: str, element: str | None, base: Path) -> Path:
+        for scheme in ("package://", "model://"):  # Gazebo model URIs: a folder, like a package
+            if uri.startswith(scheme):
+                rest = unquote(uri[len(scheme) :])
+                if rest.startswith("/") and Path(rest).is_file():
+                    return Path(rest)  # an absolute path written as a package URI
+                name, _, relative = rest.lstrip("/").partition("/")
+                if not name:
+                    raise PackageNotFoundError(
+                        f"malformed package URI '{uri}'", file=self.source, element=element
+                    )
+                if name in (".", ".."):
+                    return base / name / relative
+                if not relative:
+                    return self.find(name, element=element)
+                return self._package_file(name, relative, element)
+        if uri.startswith("file:"):
+            rest = unquote(uri[len("file:") :])
+            if rest.startswith("//"):
+                rest = rest[2:]  # file:///abs -> /abs; file://rel -> rel (seen in exports)
+                if rest.startswith("localhost/"):
+                    rest = rest[len("localhost") :]
+            path = Path(rest)
+            return path if path.is_absolute() else base / path
         path = Path(uri)
         return path if path.is_absolute() else (base / path)
