@@ -352,6 +352,8 @@ def run(doc: UrdfDocument) -> Model:
     _check_tree(links, joints, r)
     joints, notes = _drop_dangling_mimics(joints)
     notes = [Note("warning", "xacro", w) for w in doc.warnings] + notes
+    # package fallbacks guessed while expanding xacro and resolving URIs above
+    notes += [Note("warning", element, message) for element, message in doc.resolver.notes]
     if not links:
         notes.append(Note("warning", "robot", "has no links; the model is empty"))
     extensions = tuple(
