@@ -270,7 +270,7 @@ def urdf2mjcf_main() -> None:
     "-o",
     "--output",
     type=click.Path(path_type=Path, file_okay=False),
-    help="Output folder (default: build/<recipe name> under the facility root).",
+    help="Output folder (default: build/<recipe name> in the checkout, else here).",
 )
 @click.option(
     "--set",
@@ -285,7 +285,8 @@ def urdf2mjcf_main() -> None:
 @click.option(
     "--root",
     type=click.Path(path_type=Path, file_okay=False),
-    help="Facility root (holds facility/ and recipes/); default: found from the current folder.",
+    help="Facility root (holds facility/ and recipes/); default: a checkout at or above the "
+    "current folder, else the data installed with the package.",
 )
 @click.option("--no-components", is_flag=True, help="Do not also compile each asset on its own.")
 @click.option(
@@ -310,14 +311,15 @@ def make_facility_command(
     Writes scene.xml (the whole facility), components/, assets/ and facility.json.
     """
     from .facility import build as facility_build
+    from .facility import root as facility_root
     from .facility.recipe import load_recipe
 
     _configure_logging(verbose, quiet)
     with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
-        root = facility_build.find_root(root)
-        recipe_path = Path(recipe) if recipe else root / "recipes" / "imetro.yaml"
+        root = facility_root.find_root(root)
+        recipe_path = facility_root.recipe_file(root, recipe)
         parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"))
-        out = Path(output) if output else root / "build" / parsed.name
+        out = Path(output) if output else facility_root.default_output(root, parsed.name)
         report = facility_build.build_facility(
             parsed,
             out,

@@ -56,9 +56,11 @@ def test_bad_recipe_is_one_error_line_exit_2_and_nothing_written(tmp_path):
     assert not out.exists()
 
 
-def test_without_a_facility_root_the_error_says_to_pass_root(tmp_path):
-    proc = _run(cwd=tmp_path)
-    assert proc.returncode == 2 and "--root" in proc.stderr and "Traceback" not in proc.stderr
+def test_a_root_without_the_facility_data_is_one_error_line(tmp_path):
+    # Without --root the installed data is the last resort (tests/test_wheel_install.py).
+    proc = _run("--root", str(tmp_path), cwd=tmp_path)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith(f"error: {tmp_path}: no facility root")
 
 
 def test_a_failed_build_keeps_the_previous_output(tmp_path):

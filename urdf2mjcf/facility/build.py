@@ -25,6 +25,7 @@ from ..errors import InputError, OutputError
 from .jitter import jittered
 from .manifest import manifest
 from .recipe import Pose2D, Recipe
+from .root import data_path, find_root  # noqa: F401  (find_root: callers import it here)
 from .scatter import rocks_arg, scatter
 
 log = logging.getLogger(__name__)
@@ -97,18 +98,6 @@ class FacilityReport:
     components: dict[str, Path] = field(default_factory=dict)
 
 
-def find_root(start: Path | None = None) -> Path:
-    """The nearest folder at or above ``start`` holding facility/ and recipes/."""
-    here = Path(start or Path.cwd()).resolve()
-    for folder in (here, *here.parents):
-        if (folder / "facility").is_dir() and (folder / "recipes").is_dir():
-            return folder
-    raise InputError(
-        "no facility root (a folder with facility/ and recipes/) here or above; pass --root",
-        file=here,
-    )
-
-
 def _flag_text(value: object) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
@@ -151,7 +140,9 @@ def _convert_options(
         "package_paths": [root / d for d in PACKAGE_DIRS],
         "packages": {name: root / d for name, d in NAMED_PACKAGES.items()},
         "use_environment": False,
-        "actuator_config": root / recipe.actuator_config if recipe.actuator_config else None,
+        "actuator_config": data_path(root, recipe.path, recipe.actuator_config)
+        if recipe.actuator_config
+        else None,
         "gravcomp": recipe.gravcomp,
         "workers": workers,
         "cache_dir": cache_dir,
@@ -173,7 +164,7 @@ def build_facility(
 ) -> FacilityReport:
     """Compile ``recipe`` into the folder ``output`` (replaced whole on success)."""
     root = root.resolve()
-    top = root / recipe.xacro
+    top = data_path(root, recipe.path, recipe.xacro)
     if not top.is_file():
         raise InputError(
             f"top-level xacro '{recipe.xacro}' does not exist",
@@ -211,7 +202,7 @@ def build_facility(
         if components:
             assets = sorted({table[n].asset: table[n] for n in present}.items())
             for asset, comp in assets:
-                src = root / comp.standalone
+                src = data_path(root, recipe.path, comp.standalone)
                 if not src.is_file():
                     log.info("no standalone description for %s (%s)", asset, comp.standalone)
                     continue
@@ -221,7 +212,7 @@ def build_facility(
                     comp_options["actuator_config"] = None
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
-        roles = _roles(root, table, present)
+        roles = _roles(root, recipe.path, table, present)
         data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
@@ -239,7 +230,9 @@ def build_facility(
     )
 
 
-def _roles(root: Path, table: dict[str, Component], present: list[str]) -> dict[str, dict]:
+def _roles(
+    root: Path, recipe_path: Path | None, table: dict[str, Component], present: list[str]
+) -> dict[str, dict]:
     """Component name -> {prefix, roles}: what the manifest lists for each component."""
     import yaml
 
@@ -247,8 +240,9 @@ def _roles(root: Path, table: dict[str, Component], present: list[str]) -> dict[
     for name in present:
         comp = table[name]
         roles = None
-        if comp.roles and (root / comp.roles).is_file():
-            roles = yaml.safe_load((root / comp.roles).read_text())
+        file = data_path(root, recipe_path, comp.roles) if comp.roles else None
+        if file is not None and file.is_file():
+            roles = yaml.safe_load(file.read_text())
         out[name] = {"prefix": comp.prefix, "roles": roles}
     return out
 

@@ -18,8 +18,9 @@ A recipe is a YAML file (see ``recipes/imetro.yaml``)::
     actuator_config: facility/robots/imetro_robot/config/actuators.yaml
     rocks: {count: 24, seed: 3, area: [-30, 30, -30, 30]}   # optional, see scatter.py
 
-Every path is relative to the facility root (the folder holding
-``facility/`` and ``recipes/``). ``--set KEY=VALUE`` edits a recipe: a bare
+A relative path names the user's own file beside the recipe if there is
+one, else ours under the facility root (the folder holding ``facility/`` and
+``recipes/``; see ``root.py``). ``--set KEY=VALUE`` edits a recipe: a bare
 key is a flag, a dotted key any field (``jitter.ctb_yaw=0.1``).
 """
 

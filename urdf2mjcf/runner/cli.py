@@ -62,17 +62,14 @@ def facility_demo_command(scene, waypoints, trials, seed, recipe, report, frames
     from .. import headless
 
     headless.configure()
-    from ..facility.build import find_root
+    from ..facility.root import find_root
 
     folder = scene.parent if scene.suffix == ".xml" else scene
     manifest_path = folder / "facility.json"
     if not manifest_path.is_file():
         click.echo(f"error: {manifest_path}: no facility.json (build with make-facility)", err=True)
         sys.exit(2)
-    try:
-        root = find_root(Path.cwd())
-    except Exception:
-        root = find_root(Path(__file__).resolve().parents[2])
+    root = find_root()  # a checkout here or above, else the installed data
     waypoints = waypoints or root / "recipes" / "demo" / "imetro.yaml"
     if trials and trials > 0:
         from .trials import run_trials
