@@ -47,6 +47,8 @@ class UrdfDocument:
     """True when xacro ran on the source."""
     warnings: tuple[str, ...] = ()
     """Warnings xacro printed while expanding."""
+    notes: tuple[Note, ...] = ()
+    """Liberties taken reading the source (repaired XML, substituted ``$(...)``)."""
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,17 @@ class MeshRef:
     scale: Vec3 = (1.0, 1.0, 1.0)
 
 
-Geometry = Box | Cylinder | Sphere | Capsule | MeshRef
+@dataclass(frozen=True)
+class Plane:
+    """Gazebo's ``<plane>``: infinite for collision; only legal in static links."""
+
+    normal: Vec3 = (0.0, 0.0, 1.0)
+    """(3,) unit normal in the element frame."""
+    size: tuple[float, float] = (0.0, 0.0)
+    """Full extents drawn (x, y), metres; 0 draws it infinite."""
+
+
+Geometry = Box | Cylinder | Sphere | Capsule | MeshRef | Plane
 
 
 @dataclass(frozen=True)
@@ -143,7 +155,9 @@ class Link:
     collisions: tuple[Collision, ...] = ()
 
 
-JointType = Literal["revolute", "continuous", "prismatic", "fixed", "floating", "planar"]
+JointType = Literal[
+    "revolute", "continuous", "prismatic", "fixed", "floating", "planar", "spherical"
+]
 JOINT_TYPES: tuple[str, ...] = (
     "revolute",
     "continuous",
@@ -151,7 +165,9 @@ JOINT_TYPES: tuple[str, ...] = (
     "fixed",
     "floating",
     "planar",
+    "spherical",
 )
+"""``spherical`` (not in urdfdom; Gazebo and others read it) is a MuJoCo ball joint."""
 
 
 @dataclass(frozen=True)
@@ -333,7 +349,7 @@ class MaterialAsset:
     """Name of a :class:`TextureAsset`."""
 
 
-GeomType = Literal["box", "sphere", "cylinder", "capsule", "mesh"]
+GeomType = Literal["box", "sphere", "cylinder", "capsule", "mesh", "plane"]
 
 
 @dataclass(frozen=True)
@@ -346,7 +362,7 @@ class Geom:
     """Orientation in the link frame, (w, x, y, z)."""
     size: tuple[float, ...] = ()
     """MuJoCo size semantics: box half-extents; sphere radius; cylinder/capsule
-    (radius, half-length). Empty for meshes."""
+    (radius, half-length); plane (half x, half y, grid spacing). Empty for meshes."""
     mesh: str | None = None
     """MeshAsset name for mesh geoms."""
     material: str | None = None

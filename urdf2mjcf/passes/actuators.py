@@ -266,8 +266,12 @@ def _merged_specs(
 
 
 def _is_follower(robot: Robot, joint: Joint) -> bool:
-    """A mimic follower that emit ties to its leader with an equality."""
-    return joint.mimic is not None and robot.joint_map[joint.mimic.joint].type != "fixed"
+    """A mimic follower that emit ties to its leader with an equality (one-number joints)."""
+    return (
+        joint.mimic is not None
+        and joint.type in _ACTUATABLE
+        and robot.joint_map[joint.mimic.joint].type in _ACTUATABLE
+    )
 
 
 def _plan(

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
-from ..errors import URDFError
 from ..fmt import fmt_float, fmt_vec
 from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
 from ..transforms import (
@@ -30,6 +29,8 @@ from ..transforms import (
 log = logging.getLogger(__name__)
 
 WORLD = "world"
+_SCALAR = ("revolute", "continuous", "prismatic")
+"""Joint types with one qpos number: the only ones a joint equality can couple."""
 
 
 @dataclass(frozen=True)
@@ -217,9 +218,7 @@ def _limits(joint: Joint, robot_source: Path, notes: list[Note]) -> tuple[float,
         return None
     lo, hi = lo or 0.0, hi or 0.0
     if lo > hi:
-        raise URDFError(
-            f"limit lower {lo!r} > upper {hi!r}", file=robot_source, element=f"joint '{joint.name}'"
-        )
+        return None  # unlimited, as urdfdom reads it; parse has warned (or failed, --strict)
     return lo, hi
 
 
@@ -278,6 +277,12 @@ def _joint_elements(
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
         _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_rot", type="ball", **common)
         return out + [(f"{joint.name}_rot", "ball", 0.0)]
+    if joint.type == "spherical":
+        upper = joint.limit.upper if joint.limit is not None else None
+        # A ball's range bounds its rotation angle: MuJoCo wants "0 max".
+        rng = (0.0, upper) if upper is not None and upper > 0 else None
+        _set(etree.SubElement(body_el, "joint"), name=joint.name, type="ball", range=rng, **common)
+        return [(joint.name, "ball", 0.0)]
     if joint.type == "planar":
         n = np.array(axis)
         u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -521,6 +526,13 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         if j.type == "fixed" or leader.type == "fixed":
             message = (
                 f"mimics '{leader.name}' ({leader.type}) but one of them is fixed; mimic ignored"
+            )
+            notes.append(Note("warning", f"joint '{j.name}'", message))
+            continue
+        if j.type not in _SCALAR or leader.type not in _SCALAR:
+            message = (
+                f"{j.type} joint mimics '{leader.name}' ({leader.type}); MuJoCo couples only "
+                "one-number joints; mimic ignored"
             )
             notes.append(Note("warning", f"joint '{j.name}'", message))
             continue

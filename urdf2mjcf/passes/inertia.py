@@ -66,7 +66,7 @@ import numpy as np
 
 from ..errors import InertiaError
 from ..geometry import primitive_geom
-from ..ir import BodyInertial, Link, MeshAsset, MeshRef, Model, Note, Robot
+from ..ir import BodyInertial, Link, MeshAsset, MeshRef, Model, Note, Plane, Robot
 from ..mass_properties import MassProperties, combine, convex_hull, mesh_solid, primitive
 from ..transforms import (
     inertia_matrix,
@@ -283,7 +283,9 @@ def _from_geometry(
         if part is not None:
             parts.append(part.transformed(placement))
 
-    geoms = model.collision_geoms.get(link.name, ())
+    # Planes (static links only) are unbounded: they carry no mass.
+    geoms = tuple(g for g in model.collision_geoms.get(link.name, ()) if g.type != "plane")
+    visuals = [v for v in link.visuals if not isinstance(v.geometry, Plane)]
     if geoms:
         source = "collision geometry"
         assets = {a.name: a for a in model.mesh_assets}
@@ -294,9 +296,9 @@ def _from_geometry(
             else:
                 part = primitive(g.type, g.size, density)
             add(part, transform(g.pos, g.quat), g.type)
-    elif link.visuals:
+    elif visuals:
         source = "visual geometry"
-        for v in link.visuals:
+        for v in visuals:
             if isinstance(v.geometry, MeshRef):
                 add(
                     _visual_mesh(model, link, v.geometry, density, notes),

@@ -410,6 +410,8 @@ class _Builder:
         if geom.type == "mesh":
             vertices = self._vertices(geom.mesh, element)
             return vertices
+        if geom.type == "plane":
+            return None  # unbounded: no box holds it
         size = geom.size
         half = {
             "box": lambda: size[:3],
