@@ -33,6 +33,7 @@ class ConvertOptions:
     """Every option of a conversion, one config per pass, defaults in one place."""
 
     xacro: xacro.XacroConfig = field(default_factory=xacro.XacroConfig)
+    parse: parse.ParseConfig = field(default_factory=parse.ParseConfig)
     meshes: meshes.MeshConfig = field(default_factory=meshes.MeshConfig)
     collision: collision.CollisionConfig = field(default_factory=collision.CollisionConfig)
     inertia: inertia.InertiaConfig = field(default_factory=inertia.InertiaConfig)
@@ -79,7 +80,9 @@ def make_options(
             packages={k: Path(v) for k, v in (packages or {}).items()},
             package_paths=tuple(Path(p) for p in package_paths),
             use_environment=use_environment,
+            strict=strict,
         ),
+        parse=parse.ParseConfig(strict=strict, free_root=floating_base),
         meshes=meshes.MeshConfig(max_faces=max_faces, strict_visual=strict),
         collision=collision.CollisionConfig(
             source=collision_source,  # type: ignore[arg-type]
@@ -110,7 +113,7 @@ def make_options(
 def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
     """Run passes 1-6 in memory: no file is written."""
     doc = xacro.run(Path(source), options.xacro)
-    model = parse.run(doc)
+    model = parse.run(doc, options.parse)
     model = meshes.run(model, options.meshes)
     model = collision.run(model, options.collision)
     model = inertia.run(model, options.inertia)

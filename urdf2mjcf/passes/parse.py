@@ -4,12 +4,18 @@ Checks the structure URDF requires (unique names, known joint types, one
 root, a tree) and resolves every resource URI to an absolute path. Elements
 that later passes map (``ros2_control``, ``transmission``, ``gazebo``,
 ``mujoco``) are kept verbatim as :class:`~urdf2mjcf.ir.Extension`.
+
+Where urdfdom is strict but other simulators read a file anyway, so do we,
+each liberty one warning naming file and element (an error with ``strict``):
+extra numbers in a vector (the first N are used), ``lower > upper`` (the
+joint is unlimited), ``spherical``/``ball`` joints, ``<plane>`` and unknown
+geometry, zero-size shapes (dropped). Link frames are never changed.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from lxml import etree
@@ -33,6 +39,7 @@ from ..ir import (
     Mimic,
     Model,
     Note,
+    Plane,
     Pose,
     Robot,
     Sphere,
@@ -42,17 +49,37 @@ from ..ir import (
 from ..packages import PackageResolver
 
 EXTENSION_TAGS = ("ros2_control", "transmission", "gazebo", "mujoco")
+SHAPES = ("box", "cylinder", "sphere", "capsule", "mesh", "plane")
+JOINT_ALIASES = {"ball": "spherical"}
+"""Joint type spellings other tools accept, read as ours (with a warning)."""
+
+
+@dataclass(frozen=True)
+class ParseConfig:
+    strict: bool = False
+    """Every liberty taken with the URDF is an error instead of a warning."""
+    free_root: bool = False
+    """The root link will get a free joint (``--floating-base``): it and every link
+    fixed to it move, so they cannot hold a plane."""
 
 
 class _Reader:
     """Helpers that turn attribute text into numbers with precise errors."""
 
-    def __init__(self, source: Path, resolver: PackageResolver):
+    def __init__(self, source: Path, resolver: PackageResolver, cfg: ParseConfig = ParseConfig()):
         self.source = source
         self.resolver = resolver
+        self.cfg = cfg
+        self.notes: list[Note] = []
 
     def fail(self, element: str, message: str) -> URDFError:
         return URDFError(message, file=self.source, element=element)
+
+    def liberty(self, element: str, message: str) -> None:
+        """Read past what urdfdom rejects: a warning, or with ``strict`` an error."""
+        if self.cfg.strict:
+            raise self.fail(element, f"{message} (not accepted with --strict)")
+        self.notes.append(Note("warning", f"{self.source}: {element}", message))
 
     def floats(
         self, el: etree._Element, attr: str, n: int, where: str, default=None
@@ -66,6 +93,12 @@ class _Reader:
             values = tuple(float(v) for v in text.split())
         except ValueError:
             raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not a list of numbers") from None
+        if len(values) > n > 1:  # PyBullet and Gazebo read the first n; so do we
+            self.liberty(
+                f"{where} <{el.tag} {attr}>",
+                f"'{text}' has {len(values)} numbers where {n} are needed; the first {n} used",
+            )
+            values = values[:n]
         if len(values) != n:
             raise self.fail(
                 where, f"<{el.tag} {attr}='{text}'> needs {n} numbers, got {len(values)}"
@@ -95,10 +128,28 @@ class _Reader:
         rpy = self.floats(el, "rpy", 3, where, (0.0, 0.0, 0.0))
         return Pose(xyz=tuple(v + 0.0 for v in xyz), rpy=tuple(v + 0.0 for v in rpy))  # type: ignore[arg-type]
 
-    def geometry(self, el: etree._Element | None, where: str) -> Geometry:
+    def geometry(self, el: etree._Element | None, where: str) -> Geometry | None:
+        """The shape, or None when it is dropped (unknown or of zero size, with a warning)."""
         if el is None or len([c for c in el if isinstance(c.tag, str)]) == 0:
             raise self.fail(where, "<geometry> is missing or empty")
         shape = next(c for c in el if isinstance(c.tag, str))
+        kind = shape.tag
+        if kind not in SHAPES:  # <cdf>, <heightmap>, ...: simulator-specific
+            self.liberty(
+                f"{where} <{kind}>",
+                f"unknown geometry <{kind}> dropped; supported: {', '.join(SHAPES)}",
+            )
+            return None
+        geometry = self._shape(shape, where)
+        if geometry is not None and _zero_size(geometry):
+            self.liberty(f"{where} <{kind}>", "has zero size; dropped (MuJoCo needs size > 0)")
+            return None
+        if isinstance(geometry, Capsule) and geometry.length == 0.0 and geometry.radius > 0.0:
+            self.liberty(f"{where} <{kind}>", "capsule of length 0 read as a sphere")
+            return Sphere(radius=geometry.radius)
+        return geometry
+
+    def _shape(self, shape: etree._Element, where: str) -> Geometry | None:
         kind = shape.tag
         if kind == "box":
             return Box(size=self.floats(shape, "size", 3, where))  # type: ignore[arg-type]
@@ -114,6 +165,16 @@ class _Reader:
                 radius=self.scalar(shape, "radius", where),
                 length=self.scalar(shape, "length", where),
             )
+        if kind == "plane":
+            normal = self.floats(shape, "normal", 3, where, (0.0, 0.0, 1.0))
+            norm = math.sqrt(sum(v * v for v in normal))
+            if norm == 0.0:
+                raise self.fail(where, "<plane> has a zero-length normal")
+            size = self.floats(shape, "size", 2, where, (0.0, 0.0))
+            return Plane(  # warned about (or dropped) by _link: _plane_allowed
+                normal=tuple(v / norm + 0.0 for v in normal),  # type: ignore[arg-type]
+                size=tuple(abs(v) + 0.0 for v in size),  # type: ignore[arg-type]
+            )
         if kind == "mesh":
             filename = shape.get("filename")
             if not filename:
@@ -126,11 +187,11 @@ class _Reader:
                 scale = (s, s, s)
             else:
                 scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))  # type: ignore[assignment]
+            if 0.0 in scale:
+                return MeshRef(filename=filename, path=None, scale=scale)  # dropped by the caller
             path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
             return MeshRef(filename=filename, path=path, scale=tuple(v + 0.0 for v in scale))  # type: ignore[arg-type]
-        raise self.fail(
-            where, f"unknown geometry <{kind}>; supported: box, cylinder, sphere, capsule, mesh"
-        )
+        raise AssertionError(kind)
 
     def material(self, el: etree._Element, where: str, named: dict[str, Material]) -> Material:
         name = el.get("name", "")
@@ -147,7 +208,7 @@ class _Reader:
         return Material(name=name, rgba=rgba, texture=tex_path)  # type: ignore[arg-type]
 
 
-def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
+def _link(el: etree._Element, r: _Reader, named: dict[str, Material], moves: bool) -> Link:
     name = el.get("name")
     where = f"link '{name}'"
     inertial = None
@@ -173,24 +234,21 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material]) -> Link:
         vwhere = f"{where} visual {i}"
         mat_el = vel.find("material")
         material = r.material(mat_el, vwhere, named) if mat_el is not None else None
-        visuals.append(
-            Visual(
-                origin=r.pose(vel.find("origin"), vwhere),
-                geometry=r.geometry(vel.find("geometry"), vwhere),
-                material=material,
-                name=vel.get("name"),
-            )
-        )
+        origin = r.pose(vel.find("origin"), vwhere)
+        geometry = r.geometry(vel.find("geometry"), vwhere)
+        if isinstance(geometry, Plane) and not _plane_allowed(r, vwhere, moves):
+            continue
+        if geometry is not None:
+            visuals.append(Visual(origin, geometry, material=material, name=vel.get("name")))
     collisions = []
     for i, cel in enumerate(el.findall("collision")):
         cwhere = f"{where} collision {i}"
-        collisions.append(
-            Collision(
-                origin=r.pose(cel.find("origin"), cwhere),
-                geometry=r.geometry(cel.find("geometry"), cwhere),
-                name=cel.get("name"),
-            )
-        )
+        origin = r.pose(cel.find("origin"), cwhere)
+        geometry = r.geometry(cel.find("geometry"), cwhere)
+        if isinstance(geometry, Plane) and not _plane_allowed(r, cwhere, moves):
+            continue
+        if geometry is not None:
+            collisions.append(Collision(origin, geometry, name=cel.get("name")))
     return Link(name=name, inertial=inertial, visuals=tuple(visuals), collisions=tuple(collisions))  # type: ignore[arg-type]
 
 
@@ -198,6 +256,11 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
     name = el.get("name")
     where = f"joint '{name}'"
     jtype = el.get("type")
+    if jtype in JOINT_ALIASES:
+        r.liberty(where, f"type '{jtype}' is not URDF; read as '{JOINT_ALIASES[jtype]}'")
+        jtype = JOINT_ALIASES[jtype]
+    elif jtype == "spherical":
+        r.liberty(where, "type 'spherical' is not in urdfdom's URDF; written as a MuJoCo ball")
     if jtype not in JOINT_TYPES:
         raise r.fail(where, f"has type '{jtype}'; supported: {', '.join(JOINT_TYPES)}")
     parent, child = el.find("parent"), el.find("child")
@@ -205,7 +268,7 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
         raise r.fail(where, "needs <parent link=...> and <child link=...>")
     axis = (1.0, 0.0, 0.0)
     axis_el = el.find("axis")
-    if axis_el is not None and jtype not in ("fixed", "floating"):
+    if axis_el is not None and jtype not in ("fixed", "floating", "spherical"):
         a = r.floats(axis_el, "xyz", 3, where)
         norm = math.sqrt(sum(v * v for v in a))
         if norm == 0.0:
@@ -220,6 +283,12 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
             effort=r.optional(lel, "effort", where),
             velocity=r.optional(lel, "velocity", where),
         )
+        lo, hi = limit.lower or 0.0, limit.upper or 0.0  # URDF's defaults
+        if jtype in ("revolute", "prismatic") and lo > hi:
+            r.liberty(
+                f"{where} <limit>",
+                f"lower {lo!r} > upper {hi!r}; joint left unlimited, as urdfdom reads it",
+            )
     dynamics = None
     del_ = el.find("dynamics")
     if del_ is not None:
@@ -248,6 +317,49 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
         dynamics=dynamics,
         mimic=mimic,
     )
+
+
+def _zero_size(g: Geometry) -> bool:
+    """Shapes MuJoCo rejects for a zero size (a capsule of length 0 is a sphere)."""
+    if isinstance(g, Box):
+        return 0.0 in g.size
+    if isinstance(g, Cylinder):
+        return g.radius == 0.0 or g.length == 0.0
+    if isinstance(g, Sphere | Capsule):
+        return g.radius == 0.0
+    if isinstance(g, MeshRef):
+        return 0.0 in g.scale
+    return False
+
+
+def _moving_links(root: etree._Element, cfg: ParseConfig) -> set[str]:
+    """Links some non-fixed joint moves, read before the tree is checked (cycle-safe)."""
+    parent: dict[str, tuple[str, bool]] = {}
+    for el in root.findall("joint"):
+        p, c = el.find("parent"), el.find("child")
+        if p is not None and c is not None and p.get("link") and c.get("link"):
+            parent.setdefault(c.get("link"), (p.get("link"), el.get("type") != "fixed"))
+    out = set()
+    for el in root.findall("link"):
+        link, seen, moves = el.get("name"), set(), False
+        while link in parent and link not in seen and not moves:
+            seen.add(link)
+            link, moves = parent[link]
+        if moves or (cfg.free_root and link != "world"):  # emit frees a root not named world
+            out.add(el.get("name"))
+    return out
+
+
+def _plane_allowed(r: _Reader, where: str, moves: bool) -> bool:
+    """A plane is kept in a static link, dropped from a moving one (MuJoCo's rule)."""
+    if moves:
+        r.liberty(
+            f"{where} <plane>",
+            "plane in a moving link (MuJoCo allows planes only in static bodies); dropped",
+        )
+        return False
+    r.liberty(f"{where} <plane>", "<plane> is Gazebo's, not URDF; written as a MuJoCo plane")
+    return True
 
 
 def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> None:
@@ -334,7 +446,7 @@ def _drop_dangling_mimics(joints: list[Joint]) -> tuple[list[Joint], list[Note]]
     return out, notes
 
 
-def run(doc: UrdfDocument) -> Model:
+def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
     try:
         root = etree.fromstring(doc.xml, parser=etree.XMLParser(remove_comments=True))
     except etree.XMLSyntaxError as exc:
@@ -342,16 +454,17 @@ def run(doc: UrdfDocument) -> Model:
         raise InputError(f"malformed XML at line {line}: {exc.msg}", file=doc.source) from None
     if root.tag != "robot":
         raise URDFError(f"root element is <{root.tag}>, expected <robot>", file=doc.source)
-    r = _Reader(doc.source, doc.resolver)
+    r = _Reader(doc.source, doc.resolver, cfg)
     named: dict[str, Material] = {}
     for mel in root.findall("material"):
         mat = r.material(mel, f"material '{mel.get('name')}'", named)
         named.setdefault(mat.name, mat)
-    links = [_link(el, r, named) for el in root.findall("link")]
+    moving = _moving_links(root, cfg)
+    links = [_link(el, r, named, el.get("name") in moving) for el in root.findall("link")]
     joints = [_joint(el, r) for el in root.findall("joint")]
     _check_tree(links, joints, r)
     joints, notes = _drop_dangling_mimics(joints)
-    notes = [Note("warning", "xacro", w) for w in doc.warnings] + notes
+    notes = [Note("warning", "xacro", w) for w in doc.warnings] + list(doc.notes) + r.notes + notes
     # package fallbacks guessed while expanding xacro and resolving URIs above
     notes += [Note("warning", element, message) for element, message in doc.resolver.notes]
     if not links:

@@ -2,13 +2,18 @@
 
 Uses the ``xacro`` package itself, with ``$(find pkg)`` answered by our
 :class:`~urdf2mjcf.packages.PackageResolver` instead of ament/rospack, so no
-ROS installation is needed. Plain URDF files are read as they are.
+ROS installation is needed. Plain URDF files are read as they are, with two
+liberties (each a warning, an error with ``strict``): XML that urdfdom reads
+but libxml2 rejects is repaired (:mod:`urdf2mjcf.xml_repair`), and
+``$(env)``, ``$(optenv)`` and ``$(find)`` left in attributes are substituted
+as xacro would.
 """
 
 from __future__ import annotations
 
 import io
 import logging
+import re
 import threading
 import xml.parsers.expat
 from collections.abc import Mapping
@@ -18,13 +23,20 @@ from pathlib import Path
 
 from lxml import etree
 
-from ..errors import ConversionError, InputError, XacroError
-from ..ir import UrdfDocument
+from .. import xml_repair
+from ..errors import ConversionError, InputError, URDFError, XacroError
+from ..ir import Note, UrdfDocument
 from ..packages import PackageResolver
 
 log = logging.getLogger(__name__)
 
 XACRO_NAMESPACES = ("http://www.ros.org/wiki/xacro", "http://ros.org/wiki/xacro")
+
+# Extension elements whose attributes name things only ROS tools open (plugins,
+# controller files): a $(find) there must not fail a conversion that never reads them.
+_ROS_ONLY = ("gazebo", "ros2_control", "transmission")
+# The substitutions a plain URDF gets; $(arg) and $(eval) need a xacro run and stay text.
+_SUBSTITUTION = re.compile(r"\$\((?:env|optenv|find)\s[^()$]*\)")
 
 # xacro keeps its state in module globals: one expansion at a time.
 _LOCK = threading.Lock()
@@ -40,6 +52,8 @@ class XacroConfig:
     """Folders whose sub-folders are packages (``--package-path``)."""
     use_environment: bool = True
     """Also search ROS_PACKAGE_PATH and AMENT_PREFIX_PATH."""
+    strict: bool = False
+    """Repaired XML and substitution args in a plain URDF are errors, not warnings."""
 
 
 def _needs_xacro(source: Path, data: bytes, args: Mapping[str, str]) -> bool:
@@ -75,13 +89,20 @@ def _patched_find(resolver: PackageResolver):
         sa._eval_dict["find"] = saved[1]
 
 
-def _expand(source: Path, cfg: XacroConfig, resolver: PackageResolver) -> tuple[bytes, list[str]]:
+def _expand(
+    source: Path, cfg: XacroConfig, resolver: PackageResolver, repaired: bytes | None = None
+) -> tuple[bytes, list[str]]:
     import xacro
 
     chatter = io.StringIO()  # xacro prints its warnings; they belong in the report
     with _LOCK, _patched_find(resolver), redirect_stderr(chatter):
         try:
-            doc = xacro.process_file(str(source), mappings=dict(cfg.args))
+            if repaired is None:
+                doc = xacro.process_file(str(source), mappings=dict(cfg.args))
+            else:  # xacro's own steps, fed the repaired bytes instead of the file
+                xacro.init_stacks(str(source))
+                doc = xacro.parse(io.BytesIO(repaired))
+                xacro.process_doc(doc, mappings=dict(cfg.args))
         except ConversionError:
             raise
         except Exception as exc:  # xacro raises many types; all are bad input here
@@ -116,11 +137,78 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
         package_paths=tuple(cfg.package_paths),
         use_environment=cfg.use_environment,
     )
-    data = source.read_bytes()
+    original = source.read_bytes()
+    data, fixes = xml_repair.repair(original)
+    notes = [_liberty(cfg, source, element, message, InputError) for element, message in fixes]
     if _needs_xacro(source, data, cfg.args):
         log.debug("expanding %s with xacro (args %s)", source, dict(cfg.args))
-        xml, warnings = _expand(source, cfg, resolver)
+        xml, warnings = _expand(source, cfg, resolver, data if fixes else None)
         return UrdfDocument(
-            source=source, xml=xml, resolver=resolver, expanded=True, warnings=tuple(warnings)
+            source=source,
+            xml=xml,
+            resolver=resolver,
+            expanded=True,
+            warnings=tuple(warnings),
+            notes=tuple(notes),
         )
-    return UrdfDocument(source=source, xml=data, resolver=resolver)
+    data, substituted = _substitute_plain(data, source, cfg, resolver)
+    notes += substituted
+    return UrdfDocument(source=source, xml=data, resolver=resolver, notes=tuple(notes))
+
+
+def _liberty(
+    cfg: XacroConfig, source: Path, element: str, message: str, error: type[ConversionError]
+) -> Note:
+    """A warning naming file and element, or (``strict``) the error it stands for."""
+    if cfg.strict:
+        raise error(f"{message} (not accepted with --strict)", file=source, element=element)
+    return Note("warning", f"{source}: {element}", message)
+
+
+def _named_context(el: etree._Element) -> str:
+    """``link 'base' <mesh>``: the nearest named ancestor, then the element."""
+    for anc in el.iterancestors():
+        if anc.get("name") and anc.getparent() is not None:
+            return f"{anc.tag} '{anc.get('name')}' <{el.tag}>"
+    return f"<{el.tag}>"
+
+
+def _substitute_plain(
+    data: bytes, source: Path, cfg: XacroConfig, resolver: PackageResolver
+) -> tuple[bytes, list[Note]]:
+    """``$(env)``, ``$(optenv)``, ``$(find)`` left in a plain URDF, resolved as xacro would.
+
+    Tools that run every description through xacro (launch files) make these
+    work; urdfdom would leave them and fail to find the file.
+    """
+    if b"$(" not in data:
+        return data, []
+    from xacro import substitution_args as sa
+
+    tree = etree.fromstring(data).getroottree()
+    notes = []
+    for el in tree.getroot().iter():
+        if not isinstance(el.tag, str) or any(
+            a.tag in _ROS_ONLY for a in (el, *el.iterancestors())
+        ):
+            continue
+        for attr, text in el.attrib.items():
+            if not _SUBSTITUTION.search(text):
+                continue
+            where = f"{_named_context(el)} {attr}"
+            try:
+                with _LOCK, _patched_find(resolver):
+                    value = _SUBSTITUTION.sub(lambda m: sa.resolve_args(m.group(0)), text)
+            except ConversionError:
+                raise
+            except Exception as exc:  # xacro's substitution errors are bad input here
+                msg = " ".join(str(exc).split()) or type(exc).__name__
+                raise XacroError(f"'{text}': {msg}", file=source, element=where) from None
+            if value == text:
+                continue
+            message = f"'{text}' in a plain URDF substituted as xacro would: '{value}'"
+            notes.append(_liberty(cfg, source, where, message, URDFError))
+            el.set(attr, value)
+    if not notes:
+        return data, []
+    return etree.tostring(tree, encoding="utf-8", xml_declaration=True), notes

@@ -1,0 +1,112 @@
+"""Repairs of URDF bytes that urdfdom (TinyXML2) reads but libxml2 and expat reject.
+
+Found in real descriptions: an XML declaration with a version other than
+1.x, whitespace or a comment before the declaration, and content after the
+root element's end tag (a second ``</robot>``, stray text). Each repair is
+reported as ``(element, message)``; the caller warns or, with ``--strict``,
+fails. A document libxml2 already accepts comes back unchanged, and line
+numbers stay those of the file.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.parsers.expat
+
+from lxml import etree
+
+_BOM = b"\xef\xbb\xbf"
+_DECL = re.compile(rb"<\?xml\s.*?\?>", re.S)
+_LEADING = re.compile(rb"(?:\s|<!--.*?-->)+", re.S)
+_VERSION = re.compile(rb"""(\bversion\s*=\s*)(["'])([^"']*)(["'])""")
+
+
+def _well_formed(data: bytes) -> bool:
+    try:
+        etree.fromstring(data, parser=etree.XMLParser(resolve_entities=False))
+    except etree.XMLSyntaxError:
+        return False
+    return True
+
+
+def _declaration_first(data: bytes) -> tuple[bytes, str | None]:
+    """Move a declaration preceded by whitespace or comments to the start."""
+    bom = _BOM if data.startswith(_BOM) else b""
+    body = data[len(bom) :]
+    lead = _LEADING.match(body)
+    if lead is None:
+        return data, None
+    decl = _DECL.match(body, lead.end())
+    if decl is None:
+        return data, None
+    prefix = lead.group(0)
+    what = "a comment" if b"<!--" in prefix else "whitespace"
+    # The prefix goes after the declaration: comments survive, lines keep their numbers.
+    fixed = bom + decl.group(0) + prefix + body[decl.end() :]
+    return fixed, f"{what} before the XML declaration; read as if the declaration came first"
+
+
+def _version(data: bytes) -> tuple[bytes, str | None]:
+    """A declaration version libxml2 does not know (``0.0``) is read as 1.0."""
+    bom = _BOM if data.startswith(_BOM) else b""
+    decl = _DECL.match(data, len(bom))
+    if decl is None:
+        return data, None
+    version = _VERSION.search(decl.group(0))
+    if version is None or re.fullmatch(rb"1\.[0-9]+", version.group(3)):
+        return data, None
+    start, end = decl.start() + version.start(3), decl.start() + version.end(3)
+    text = version.group(3).decode("utf-8", "replace")
+    return data[:start] + b"1.0" + data[end:], f"version '{text}' is not XML 1.x; read as 1.0"
+
+
+def _root_end(data: bytes) -> int | None:
+    """Byte offset just past the root element's end tag, when junk follows it."""
+    parser = xml.parsers.expat.ParserCreate()
+    depth, end = 0, None
+
+    def start(_name, _attrs) -> None:
+        nonlocal depth
+        depth += 1
+
+    def stop(_name) -> None:
+        nonlocal depth, end
+        depth -= 1
+        if depth == 0 and end is None:
+            end = parser.CurrentByteIndex  # the '<' of the end tag (or of '/>')
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = stop
+    try:
+        parser.Parse(data, True)
+    except xml.parsers.expat.ExpatError:
+        if end is None:
+            return None  # malformed inside the document: not ours to repair
+        close = data.find(b">", end)
+        return close + 1 if close >= 0 else None
+    return None
+
+
+def _trailing(data: bytes) -> tuple[bytes, str | None]:
+    end = _root_end(data)
+    if end is None:
+        return data, None
+    junk = data[end:].strip()
+    shown = junk[:40].decode("utf-8", "replace").replace("\n", " ")
+    return data[:end] + b"\n", f"content after the root element ('{shown}') ignored"
+
+
+def repair(data: bytes) -> tuple[bytes, list[tuple[str, str]]]:
+    """``data`` with the repairs it needs, and ``(element, message)`` for each one."""
+    if _well_formed(data):
+        return data, []
+    fixes: list[tuple[str, str]] = []
+    for element, step in (
+        ("XML declaration", _declaration_first),
+        ("XML declaration", _version),
+        ("end of document", _trailing),
+    ):
+        data, message = step(data)
+        if message:
+            fixes.append((element, message))
+    return data, fixes
