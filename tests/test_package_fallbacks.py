@@ -103,6 +103,14 @@ def test_renamed_package_resolves_inside_the_urdfs_own_package(tmp_path):
     lines = _warnings(proc, "abb_irb140_support")
     assert len(lines) == 1, proc.stderr  # once per substitution, not once per mesh
     assert "abb_irb140_description" in lines[0] and str(pkg) in lines[0]
+    # --strict: the same guess is one error line, exit 2, nothing written
+    strict_out = tmp_path / "strict" / "irb140.xml"
+    proc = _convert(src, strict_out, "--strict")
+    assert proc.returncode == 2, proc.stderr
+    errors = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(errors) == 1 and errors[0].startswith("error:"), proc.stderr
+    assert "abb_irb140_support" in errors[0] and "--strict" in errors[0]
+    assert not strict_out.parent.exists()
 
 
 def test_renamed_package_without_package_xml_tries_each_ancestor(tmp_path):

@@ -136,6 +136,7 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
         packages=dict(cfg.packages),
         package_paths=tuple(cfg.package_paths),
         use_environment=cfg.use_environment,
+        strict=cfg.strict,
     )
     original = source.read_bytes()
     data, fixes = xml_repair.repair(original)
