@@ -6,10 +6,11 @@ becomes that hull; a clearly concave one is split by CoACD into convex parts,
 one geom each, all placed at the element's origin like the mesh itself. A flat
 mesh (no volume) becomes a thin box, which MuJoCo can collide with.
 
-Decompositions run in a thread pool (CoACD releases the GIL) and are kept in
-a disk cache (:mod:`urdf2mjcf.decompose_cache`); results are applied in
-document order whatever order they finish in, so the output does not depend
-on ``workers``.
+Decompositions run in worker processes (:mod:`.decompose_worker`), so that
+CoACD crashing (a C++ assertion aborts the process) or hanging costs only
+that mesh: it gets its convex hull and a warning. Results are kept in a disk
+cache (:mod:`urdf2mjcf.decompose_cache`) and applied in document order
+whatever order they finish in, so the output does not depend on ``workers``.
 
 Determinism: CoACD 1.0.14 with a fixed ``seed`` returns bit-identical parts
 across runs, processes, concurrent threads and OpenMP thread counts
@@ -19,11 +20,11 @@ across runs, processes, concurrent threads and OpenMP thread counts
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import logging
 import os
 from collections import Counter
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Literal
@@ -46,6 +47,7 @@ from ..errors import MeshError
 from ..geometry import primitive_geom
 from ..ir import Collision, Geom, LoadedMesh, MeshAsset, MeshData, MeshRef, Model, Note, Visual
 from ..transforms import pose_matrix, quat_from_rpy, split_transform, vec3
+from .decompose_worker import decompose_all
 
 logger = logging.getLogger(__name__)
 
@@ -105,7 +107,11 @@ class CollisionConfig:
     ``~/.cache/urdf2mjcf``."""
     use_cache: bool = True
     workers: int = 0
-    """Decompositions run at once (threads); 0: one per available CPU; 1: one after another."""
+    """Decompositions run at once (worker processes); 0: one per available CPU."""
+    timeout: float = 120.0
+    """Seconds one decomposition may take (0: no limit); past it the worker is
+    killed and the mesh gets its convex hull, with a warning. Robot links take
+    0.1-5 s; triangle soups can keep CoACD busy for many minutes."""
     progress: Callable[[int, int, str], None] | None = None
     """Called with (done, total, label) each time a decomposition finishes."""
 
@@ -280,20 +286,22 @@ def _plan_meshes(
     plans: dict[MeshKey, _Plan] = {}
     for sha, outcome in by_content.items():  # document order, whatever the completion order
         if isinstance(outcome, _Job):
-            outcome = _job_plan(outcome, results.get(outcome.key), mesh_notes[sha])
+            outcome = _job_plan(outcome, *results[outcome.key], mesh_notes[sha])
         notes.extend(mesh_notes[sha])
         for key in users[sha]:
             plans[key] = outcome
     return plans
 
 
-def _job_plan(job: _Job, parts: list[MeshData] | None, notes: list[Note]) -> _Plan:
+def _job_plan(job: _Job, parts: list[MeshData] | None, failure: str, notes: list[Note]) -> _Plan:
     if parts is not None:
         notes.append(
             Note("decomposed", job.label, f"{len(parts)} convex parts (hull gap {job.gap:.3f})")
         )
         return _Plan("parts", job.label, job.stem, pieces=tuple(parts))
-    notes.append(Note("warning", job.label, "convex decomposition failed; using the convex hull"))
+    notes.append(
+        Note("warning", job.label, f"convex decomposition {failure}; using the convex hull")
+    )
     return _Plan("hull", job.label, job.stem, pieces=(job.hull,))
 
 
@@ -356,79 +364,47 @@ def _available_cpus() -> int:
 
 def _run_jobs(
     jobs: list[_Job], cfg: CollisionConfig, cache: DecompositionCache | None
-) -> dict[str, list[MeshData] | None]:
-    """Decompose every job; None for a job whose decomposition failed."""
-    results: dict[str, list[MeshData] | None] = {}
+) -> dict[str, tuple[list[MeshData] | None, str]]:
+    """Decompose every job: its parts, or None and why not."""
+    results: dict[str, tuple[list[MeshData] | None, str]] = {}
     if not jobs:
-        return results
+        return results  # start no worker when the cache answered everything
+    _require_coacd()
     params = asdict(cfg.coacd)
     total = len(jobs)
-    workers = cfg.workers if cfg.workers > 0 else _available_cpus()
-    workers = min(workers, total)
+    workers = min(cfg.workers if cfg.workers > 0 else _available_cpus(), total)
     logger.info("decomposing %d meshes with CoACD (%d workers)", total, workers)
-    _quiet_coacd()
 
-    def finish(job: _Job, parts: list[MeshData] | None) -> None:
-        results[job.key] = parts
-        if parts is not None and cache is not None:
+    def finish(index: int, raw: list[np.ndarray] | None, failure: str) -> None:
+        job = jobs[index]
+        parts = _solid_parts(raw) if raw is not None else None
+        if raw is not None and parts is None:
+            failure = "gave no solid parts"
+        if parts is None:
+            logger.debug("CoACD on %s: %s", job.label, failure)
+        elif cache is not None:
             cache.store(job.key, parts)
+        results[job.key] = (parts, failure)
         if cfg.progress is not None:
             cfg.progress(len(results), total, job.name)
 
-    if workers <= 1:
-        for job in jobs:
-            finish(job, _safe_decompose(job.vertices, job.faces, params, job.label))
-        return results
-
-    # Threads, not processes: CoACD releases the GIL while it works (2 threads
-    # halve the wall time on 2 cores), and threads need neither fork, which
-    # hangs after OpenMP has run, nor spawn, which re-imports the caller's script.
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="coacd")
-    try:
-        futures: dict[Future, int] = {
-            pool.submit(_safe_decompose, job.vertices, job.faces, params, job.label): i
-            for i, job in enumerate(jobs)
-        }
-        remaining = set(futures)
-        while remaining:
-            done, remaining = wait(remaining, return_when=FIRST_COMPLETED)
-            for fut in sorted(done, key=futures.__getitem__):
-                finish(jobs[futures[fut]], fut.result())
-    except BaseException:  # Ctrl-C included: do not wait for the queued jobs
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown()
+    decompose_all([(j.vertices, j.faces, params) for j in jobs], workers, cfg.timeout, finish)
     return results
 
 
-def _quiet_coacd() -> None:
-    try:
-        import coacd
-    except ImportError as exc:  # pragma: no cover - coacd is a dependency
+def _require_coacd() -> None:
+    if importlib.util.find_spec("coacd") is None:  # pragma: no cover - coacd is a dependency
         raise MeshError(
             "convex decomposition needs coacd: pip install coacd "
             "(or use source='none' / a larger max_hull_gap)"
-        ) from exc
-    coacd.set_log_level("error")
+        )
 
 
-def _safe_decompose(
-    vertices: np.ndarray, faces: np.ndarray, params: dict, label: str
-) -> list[MeshData] | None:
-    try:
-        return decompose(vertices, faces, params)
-    except Exception as exc:  # CoACD raises assorted errors on broken input
-        logger.warning("CoACD failed on %s: %s", label, exc)
-        return None
-
-
-def decompose(vertices: np.ndarray, faces: np.ndarray, params: dict) -> list[MeshData] | None:
-    """CoACD parts, each replaced by its exact outward-facing hull; flat parts dropped."""
-    import coacd
-
-    raw = coacd.run_coacd(coacd.Mesh(vertices, faces), **params)
+def _solid_parts(raw: list[np.ndarray]) -> list[MeshData] | None:
+    """CoACD's parts (their vertices), each replaced by its exact outward-facing hull;
+    flat parts dropped."""
     parts = []
-    for v, _f in raw:
+    for v in raw:
         hull = convex_hull(np.asarray(v, dtype=np.float64))
         if hull is not None:
             parts.append(hull)
