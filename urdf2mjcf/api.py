@@ -59,6 +59,7 @@ def make_options(
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
     workers: int = 0,
+    decompose_timeout: float = 120.0,
     progress: Callable[[int, int, str], None] | None = None,
     strict: bool = False,
     max_faces: int = 200_000,
@@ -89,6 +90,7 @@ def make_options(
             cache_dir=Path(cache_dir) if cache_dir else None,
             use_cache=use_cache,
             workers=workers,
+            timeout=decompose_timeout,
             progress=progress,
         ),
         inertia=inertia.InertiaConfig(

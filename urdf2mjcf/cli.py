@@ -147,6 +147,14 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
 )
 @click.option(
+    "--decompose-timeout",
+    type=click.FloatRange(min=0),
+    default=120.0,
+    show_default=True,
+    help="Seconds one mesh's convex decomposition may take (0 = no limit); "
+    "past it the mesh gets its convex hull, with a warning.",
+)
+@click.option(
     "--max-faces",
     type=int,
     default=200_000,
@@ -185,6 +193,7 @@ def urdf2mjcf_command(
     cache_dir,
     no_cache,
     jobs,
+    decompose_timeout,
     max_faces,
     report_path,
     verbose,
@@ -213,6 +222,7 @@ def urdf2mjcf_command(
             cache_dir=cache_dir,
             use_cache=not no_cache,
             workers=jobs,
+            decompose_timeout=decompose_timeout,
             progress=progress,
             strict=strict,
             max_faces=max_faces,
