@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -204,8 +204,13 @@ def urdf2mjcf_command(
     xacro arguments are given as NAME:=VALUE, exactly as with ROS.
     """
     from . import api  # keep `--help` fast
+    from .output import check_file, write_json
 
     _configure_logging(verbose, quiet)
+    if report_path:
+        if report_path.resolve() == Path(output).resolve():
+            raise click.BadParameter("is the MJCF output file", param_hint="--report")
+        check_file(report_path, overwrite, "urdf2mjcf")  # before the work, not after
     try:
         densities = {k: float(v) for k, v in _pairs(link_density, "=", "LINK=DENSITY").items()}
     except ValueError:
@@ -239,21 +244,46 @@ def urdf2mjcf_command(
         )
         report = api.convert(source, output, options)
     if report_path:
-        report_path.write_text(json.dumps(report.to_dict(), indent=2) + "\n")
+        write_json(report_path, report.to_dict(), "urdf2mjcf")
     if not quiet:
         _echo_notes(report.notes, verbose)
         click.echo(f"wrote {output}")
         click.echo(report.summary())
 
 
+def _one_line(text: str) -> str:
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+def _add_debug_option(command: click.Command) -> None:
+    if not any(p.name == "debug" for p in command.params):
+        command.params.append(
+            click.Option(
+                ["--debug"],
+                is_flag=True,
+                expose_value=False,  # run_command reads it from the arguments
+                help="Print the traceback of an error too.",
+            )
+        )
+
+
 def run_command(command: click.Command, args: list[str] | None = None) -> None:
-    """Run ``command`` so that every failure is one ``error:`` line and exit code 2."""
+    """Run ``command`` so that every failure is one ``error:`` line on stderr.
+
+    Bad input or usage: exit code 2. A ``ConversionError`` is the usual path for
+    bad input; the ``Exception`` guard at the end is the last resort for a bug
+    (exit code 1). ``--debug`` prints the traceback as well.
+    """
     headless.configure()  # before anything imports mujoco: cameras render without a display
+    _add_debug_option(command)
+    debug = "--debug" in (sys.argv[1:] if args is None else args)
     try:
         command.main(args=args, standalone_mode=False)
     except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
         logging.getLogger(__name__).debug("%s failed", command.name, exc_info=True)
-        click.echo(f"error: {exc}", err=True)
+        if debug:
+            traceback.print_exc()
+        click.echo(f"error: {_one_line(str(exc))}", err=True)
         sys.exit(2)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
@@ -265,8 +295,24 @@ def run_command(command: click.Command, args: list[str] | None = None) -> None:
         click.echo(f"error: {exc.format_message()}{hint}", err=True)
         sys.exit(2)
     except click.ClickException as exc:
-        click.echo(f"error: {exc.format_message()}", err=True)
+        click.echo(f"error: {_one_line(exc.format_message())}", err=True)
         sys.exit(2)
+    except OSError as exc:  # a file or folder the user named cannot be read or written
+        if debug:
+            traceback.print_exc()
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{_one_line(exc.strerror or str(exc))}", err=True)
+        sys.exit(2)
+    except Exception as exc:  # last resort: a bug, never the path for bad input
+        if debug:
+            traceback.print_exc()
+        hint = "" if debug else "; run with --debug for the traceback"
+        click.echo(
+            f"error: internal error in {command.name}: {type(exc).__name__}: "
+            f"{_one_line(str(exc))}{hint}",
+            err=True,
+        )
+        sys.exit(1)
     sys.exit(0)
 
 
@@ -300,6 +346,11 @@ def urdf2mjcf_main() -> None:
 )
 @click.option("--no-components", is_flag=True, help="Do not also compile each asset on its own.")
 @click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Build into a non-empty folder that is not an earlier build (its other files are kept).",
+)
+@click.option(
     "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
 )
 @click.option(
@@ -314,7 +365,19 @@ def urdf2mjcf_main() -> None:
 @click.option("-q", "--quiet", is_flag=True, help="Only errors.")
 @click.pass_context
 def make_facility_command(
-    ctx, recipe, output, sets, seed, root, no_components, jobs, cache_dir, demo, verbose, quiet
+    ctx,
+    recipe,
+    output,
+    sets,
+    seed,
+    root,
+    no_components,
+    overwrite,
+    jobs,
+    cache_dir,
+    demo,
+    verbose,
+    quiet,
 ):
     """Build a simulated facility from a RECIPE (default: recipes/imetro.yaml).
 
@@ -329,6 +392,12 @@ def make_facility_command(
         root = facility_root.find_root(root)
         recipe_path = facility_root.recipe_file(root, recipe)
         parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"))
+        if demo and not facility_build.has_robot(parsed):  # say so before building
+            raise ConversionError(
+                "the recipe places no robot (see its flags and placements); --demo needs one",
+                file=recipe_path,
+                element="--demo",
+            )
         out = Path(output) if output else facility_root.default_output(root, parsed.name)
         report = facility_build.build_facility(
             parsed,
@@ -339,6 +408,7 @@ def make_facility_command(
             workers=jobs,
             cache_dir=cache_dir,
             progress=progress,
+            overwrite=overwrite,
         )
     if not quiet:
         _echo_notes(report.conversion.notes, verbose)

@@ -1,7 +1,8 @@
 """One base error, specific subclasses.
 
 Every message names the file and the element and, where it helps, what would
-be valid. The command line prints ``error: <message>`` and exits with code 2.
+be valid. Every command (``urdf2mjcf``, ``make-facility``, ``facility-demo``,
+``rover-drive``) prints ``error: <message>`` and exits with code 2.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from pathlib import Path
 
 
 class ConversionError(Exception):
-    """Base class: the input cannot be converted. Nothing has been written."""
+    """Base class of bad input: it cannot be used. Nothing has been written."""
 
     def __init__(self, message: str, *, file: Path | str | None = None, element: str | None = None):
         self.file = str(file) if file is not None else None
@@ -55,3 +56,7 @@ class ValidationError(ConversionError):
 
 class OutputError(ConversionError):
     """The output location cannot be written (exists without --overwrite, not a directory)."""
+
+
+class FacilityError(ConversionError):
+    """A built facility, or a runner's input (waypoints file), lacks something or is malformed."""

@@ -4,26 +4,25 @@ The whole facility is one URDF (the recipe's top-level xacro with its flags
 and poses as xacro arguments), compiled by :func:`urdf2mjcf.convert` into
 ``scene.xml``; each asset in it is also compiled on its own into
 ``components/<asset>/`` for working on one mockup at a time. The output
-folder is staged beside the target and swapped in whole, so a failed build
-leaves the previous one intact.
+folder is staged beside the target and moved in only when the build succeeded,
+so a failed build leaves the previous one intact. ``facility.json`` lists every
+file we wrote: a rebuild replaces those and keeps anything else in the folder
+(see ``urdf2mjcf.output``).
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import math
-import os
-import shutil
-import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .. import api
-from ..errors import InputError, OutputError
+from .. import output as out
+from ..errors import InputError
 from .jitter import jittered
-from .manifest import manifest
+from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
 from .recipe import Pose2D, Recipe
 from .root import data_path, find_root  # noqa: F401  (find_root: callers import it here)
 from .scatter import rocks_arg, scatter
@@ -118,6 +117,11 @@ def _enabled(recipe: Recipe, name: str) -> bool:
     return value not in (False, "false", "none", None, 0)
 
 
+def has_robot(recipe: Recipe) -> bool:
+    """Whether the facility will hold the robot the demo drives."""
+    return "robot" in recipe.placements and _enabled(recipe, "robot")
+
+
 def xacro_args(recipe: Recipe, placements: dict[str, Pose2D], ctb: Pose2D | None) -> dict[str, str]:
     """The top-level xacro's arguments: flags, every pose, simulation options."""
     args = {k: _flag_text(v) for k, v in recipe.flags.items()}
@@ -161,8 +165,13 @@ def build_facility(
     workers: int = 0,
     cache_dir: Path | None = None,
     progress: Callable[[int, int, str], None] | None = None,
+    overwrite: bool = False,
 ) -> FacilityReport:
-    """Compile ``recipe`` into the folder ``output`` (replaced whole on success)."""
+    """Compile ``recipe`` into the folder ``output``: on success, the files of an earlier
+    build there are replaced and nothing else is touched. A non-empty ``output`` without
+    our ``facility.json`` is refused unless ``overwrite``."""
+    output = Path(output)
+    previous = out.check_folder(output, overwrite, MANIFEST, GENERATOR)
     root = root.resolve()
     top = data_path(root, recipe.path, recipe.xacro)
     if not top.is_file():
@@ -189,12 +198,7 @@ def build_facility(
         root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
     )
 
-    output = Path(output)
-    if output.exists() and not output.is_dir():
-        raise OutputError("exists and is not a folder", file=output)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{output.name}-", dir=output.parent))
-    try:
+    with out.staged_folder(output) as stage:
         report = api.convert(top, stage / "scene.xml", args=args, scene=False, **options)
         built: dict[str, Path] = {}
         table = components_of(recipe)
@@ -216,11 +220,8 @@ def build_facility(
         data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
-        (stage / "facility.json").write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
-        _swap_in(stage, output)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
+        write_manifest(stage, data)
+        out.install_folder(stage, output, previous, overwrite=overwrite, last=MANIFEST)
     return FacilityReport(
         output=output,
         scene=output / "scene.xml",
@@ -245,17 +246,6 @@ def _roles(
             roles = yaml.safe_load(file.read_text())
         out[name] = {"prefix": comp.prefix, "roles": roles}
     return out
-
-
-def _swap_in(stage: Path, output: Path) -> None:
-    """Replace the folder ``output`` by ``stage`` with two renames."""
-    old = None
-    if output.exists():
-        old = output.with_name(f".{output.name}-old-{os.getpid()}")
-        os.replace(output, old)
-    os.replace(stage, output)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
 
 
 def yaw_quat(yaw: float) -> tuple[float, float, float, float]:

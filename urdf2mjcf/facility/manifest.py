@@ -3,13 +3,20 @@
 Read back from the compiled model itself (MuJoCo's names are the truth a
 runner will use), plus the recipe, the seed and the poses it produced. No
 timestamps or absolute paths: two builds with the same seed are identical.
+``"generator": "make-facility"`` and ``"files"`` (every file the build wrote)
+mark the folder as ours: a rebuild replaces exactly those files.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+from .. import output
 from .recipe import Pose2D, Recipe
+
+MANIFEST = "facility.json"
+GENERATOR = "make-facility"
 
 _JOINT_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
 
@@ -149,6 +156,7 @@ def manifest(
         except ValueError:
             recipe_file = Path(recipe.path).name
     return {
+        "generator": GENERATOR,
         "recipe": recipe.name,
         "recipe_file": recipe_file,
         "xacro": recipe.xacro,
@@ -176,3 +184,9 @@ def manifest(
         "sensors": sensors,
         "cameras": cameras,
     }
+
+
+def write_manifest(folder: Path, data: dict) -> None:
+    """``folder/facility.json``, listing every file in ``folder`` (the build's output)."""
+    data = {**data, "generator": GENERATOR, "files": output.list_files(folder)}
+    (folder / MANIFEST).write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")

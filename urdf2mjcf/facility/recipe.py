@@ -21,7 +21,9 @@ A recipe is a YAML file (see ``recipes/imetro.yaml``)::
 A relative path names the user's own file beside the recipe if there is
 one, else ours under the facility root (the folder holding ``facility/`` and
 ``recipes/``; see ``root.py``). ``--set KEY=VALUE`` edits a recipe: a bare
-key is a flag, a dotted key any field (``jitter.ctb_yaw=0.1``).
+key is one of its flags (or a top-level field such as ``gravcomp``), a dotted
+key any field (``jitter.ctb_yaw=0.1``). A key the recipe does not know is an
+error naming the valid ones.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ TOP_KEYS = (
     "gravcomp",
     "rocks",
 )
+SECTIONS = ("components", "flags", "placements", "ctb", "jitter", "simulation", "rocks")
 JITTER_KEYS = ("position", "yaw", "ctb_position", "ctb_yaw")
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
 SIMULATION_CHOICES = {
@@ -90,12 +93,16 @@ class Recipe:
     """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
 
 
+def _names(keys: Any) -> str:
+    return ", ".join(sorted(str(k) for k in keys))
+
+
 def _pose(value: Any, path: Path | None, key: str) -> Pose2D:
     if not isinstance(value, Mapping) or "xyz" not in value:
         raise fail(path, key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
     unknown = set(value) - {"xyz", "yaw"}
     if unknown:
-        raise fail(path, key, f"unknown key(s) {', '.join(sorted(unknown))}; valid: xyz, yaw")
+        raise fail(path, key, f"unknown key(s) {_names(unknown)}; valid: xyz, yaw")
     xyz = value["xyz"]
     if not isinstance(xyz, (list, tuple)) or len(xyz) != 3:
         raise fail(path, f"{key}.xyz", "needs three numbers")
@@ -113,21 +120,89 @@ def _parse_scalar(text: str) -> Any:
         return text
 
 
+def _set_flag(flags: Any, name: str, text: str, path: Path | None, where: str) -> None:
+    """A --set of a flag: one the recipe declares, a boolean flag only true or false."""
+    known = flags if isinstance(flags, Mapping) else {}
+    if name not in known:
+        valid = _names(known) or "none (the recipe has no flags)"
+        raise fail(path, where, f"unknown flag '{name}'; the recipe's flags: {valid}")
+    if isinstance(known[name], bool) and not isinstance(_parse_scalar(text), bool):
+        raise fail(path, where, f"'{text}' is not true or false")
+
+
 def apply_sets(data: dict, sets: Mapping[str, str], path: Path | None) -> dict:
-    """``--set`` edits: bare keys are flags, dotted keys address any field."""
+    """``--set`` edits: a bare key is a flag (or a top-level field), a dotted key any field."""
     data = copy.deepcopy(data)
     for key, text in sets.items():
+        where = f"--set {key}"
         value = _parse_scalar(text)
         parts = key.split(".")
-        if len(parts) == 1:
+        if len(parts) == 1 and (key not in TOP_KEYS or key in (data.get("flags") or {})):
             parts = ["flags", key]
+        if parts[0] not in TOP_KEYS or not all(parts):
+            valid = f"a flag, or a field under {', '.join(TOP_KEYS)}"
+            raise fail(path, where, f"unknown key '{parts[0]}'; valid: {valid}")
+        if len(parts) == 1 and key in SECTIONS:
+            raise fail(path, where, f"'{key}' is a section; set one of its fields ({key}.NAME)")
+        if parts[0] == "flags":
+            if len(parts) != 2:
+                raise fail(path, where, "a flag is one name (hatch_4040=true)")
+            _set_flag(data.get("flags"), parts[1], text, path, where)
         target = data
         for part in parts[:-1]:
             target = target.setdefault(part, {})
             if not isinstance(target, dict):
-                raise fail(path, key, f"'{part}' is not a section")
+                raise fail(path, where, f"'{part}' is not a section")
         target[parts[-1]] = value
     return data
+
+
+def _section(data: Mapping, key: str, path: Path | None) -> dict:
+    """An optional mapping section (absent or empty: {})."""
+    value = data.get(key)
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise fail(path, key, f"'{value}' is not a mapping of keys to values")
+    return {str(k): v for k, v in value.items()}
+
+
+def _text(data: Mapping, key: str, path: Path | None, *, required: bool = False) -> str | None:
+    value = data.get(key)
+    if value is None or value == "":
+        if required:
+            raise fail(path, key, "is required")
+        return None
+    if not isinstance(value, str):
+        raise fail(path, key, f"'{value}' is not text")
+    return value
+
+
+def _flags(data: Mapping, path: Path | None) -> dict:
+    flags = _section(data, "flags", path)
+    for name, value in flags.items():
+        if not isinstance(value, (str, bool, int, float)):
+            message = "a flag is one value: true, false, a number or a name"
+            raise fail(path, f"flags.{name}", message)
+    return flags
+
+
+def _component(spec: Any, path: Path | None, where: str) -> dict:
+    if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
+        raise fail(path, where, "needs asset and standalone (and optionally flag, prefix, roles)")
+    unknown = set(spec) - set(COMPONENT_KEYS)
+    if unknown:
+        valid = ", ".join(COMPONENT_KEYS)
+        raise fail(path, where, f"unknown key(s) {_names(unknown)}; valid: {valid}")
+    out = {}
+    for key in COMPONENT_KEYS:
+        if key in spec:
+            value = spec[key]
+            optional = key in ("flag", "roles")
+            if not (isinstance(value, str) or (optional and value is None)):
+                raise fail(path, f"{where}.{key}", f"'{value}' is not text")
+            out[key] = value
+    return out
 
 
 def parse_recipe(data: Any, path: Path | None) -> Recipe:
@@ -135,24 +210,28 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
         raise fail(path, "recipe", "a recipe is a mapping of keys to values")
     unknown = set(data) - set(TOP_KEYS)
     if unknown:
-        raise fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(TOP_KEYS)}")
-    for required in ("name", "xacro"):
-        if not data.get(required):
-            raise fail(path, required, "is required")
-    flags = dict(data.get("flags") or {})
+        raise fail(path, _names(unknown), f"unknown key; valid: {', '.join(TOP_KEYS)}")
+    name = _text(data, "name", path, required=True)
+    xacro = _text(data, "xacro", path, required=True)
+    description = _text(data, "description", path) or ""
+    actuator_config = _text(data, "actuator_config", path)
+    gravcomp = data.get("gravcomp", False)
+    if not isinstance(gravcomp, bool):
+        raise fail(path, "gravcomp", f"'{gravcomp}' is not true or false")
+    flags = _flags(data, path)
     placements = {
-        name: _pose(value, path, f"placements.{name}")
-        for name, value in (data.get("placements") or {}).items()
+        where: _pose(value, path, f"placements.{where}")
+        for where, value in _section(data, "placements", path).items()
     }
     ctb = _pose(data["ctb"], path, "ctb") if data.get("ctb") else None
     jitter = {}
-    for key, value in (data.get("jitter") or {}).items():
+    for key, value in _section(data, "jitter", path).items():
         if key not in JITTER_KEYS:
             raise fail(path, f"jitter.{key}", f"unknown key; valid: {', '.join(JITTER_KEYS)}")
         jitter[key] = number(value, path, f"jitter.{key}")
         if jitter[key] < 0:
             raise fail(path, f"jitter.{key}", "a jitter range is >= 0")
-    simulation = dict(data.get("simulation") or {})
+    simulation = _section(data, "simulation", path)
     for key, value in simulation.items():
         where = f"simulation.{key}"
         if key not in SIMULATION_KEYS:
@@ -163,43 +242,47 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
                 raise fail(path, where, f"'{value}' is not one of {valid}")
         elif number(value, path, where) <= 0:
             raise fail(path, where, "must be > 0")
-    components = {}
-    for cname, spec in (data.get("components") or {}).items():
-        where = f"components.{cname}"
-        if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
-            raise fail(
-                path, where, "needs asset and standalone (and optionally flag, prefix, roles)"
-            )
-        unknown = set(spec) - set(COMPONENT_KEYS)
-        if unknown:
-            raise fail(
-                path,
-                where,
-                f"unknown key(s) {', '.join(sorted(unknown))}; valid: {', '.join(COMPONENT_KEYS)}",
-            )
-        components[str(cname)] = {k: spec.get(k) for k in COMPONENT_KEYS if k in spec}
+    components = {
+        cname: _component(spec, path, f"components.{cname}")
+        for cname, spec in _section(data, "components", path).items()
+    }
     return Recipe(
-        name=str(data["name"]),
+        name=str(name),
         components=components,
         path=path,
-        xacro=str(data["xacro"]),
+        xacro=str(xacro),
         flags=flags,
         placements=placements,
         ctb=ctb,
         jitter=jitter,
         simulation=simulation,
-        actuator_config=data.get("actuator_config"),
-        gravcomp=bool(data.get("gravcomp", False)),
-        description=str(data.get("description", "")),
+        actuator_config=actuator_config,
+        gravcomp=gravcomp,
+        description=description,
         rocks=parse_rocks(data.get("rocks"), path),
     )
 
 
-def load_recipe(path: Path, sets: Mapping[str, str] | None = None) -> Recipe:
+def read_yaml(path: Path, what: str) -> Any:
+    """A YAML file's data; an InputError naming the file (and the line) when it is
+    missing, unreadable, not text or not YAML."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
+        return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
     except OSError as exc:
-        raise InputError(f"cannot read recipe: {exc.strerror}", file=path) from None
+        raise InputError(f"cannot read {what}: {exc.strerror}", file=path) from None
+    except UnicodeDecodeError:
+        raise InputError(f"cannot read {what}: not a text file", file=path) from None
     except yaml.YAMLError as exc:
-        raise InputError(f"not valid YAML: {exc}".splitlines()[0], file=path) from None
-    return parse_recipe(apply_sets(data or {}, sets or {}, path), Path(path))
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise InputError(f"{what} is not valid YAML: {problem}", file=path, element=where) from None
+
+
+def load_recipe(path: Path, sets: Mapping[str, str] | None = None) -> Recipe:
+    data = read_yaml(path, "recipe")
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise fail(Path(path), "recipe", "a recipe is a mapping of keys to values")
+    return parse_recipe(apply_sets(dict(data), sets or {}, path), Path(path))

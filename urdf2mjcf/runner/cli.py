@@ -1,11 +1,15 @@
 """``facility-demo SCENE``: replay the logistics demo in a built facility and judge it.
 
-Exit 0 only when the demo succeeds (every trial, with ``--trials``)."""
+Exit 0 only when the demo succeeds (every trial, with ``--trials``), 1 when it fails,
+2 on bad input (checked before anything runs: the facility, its robot, the waypoints
+file, where the report and pictures go)."""
 
 from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import click
@@ -23,7 +27,30 @@ def _table(steps: list[dict]) -> str:
     return "\n".join(lines)
 
 
-@click.command("facility-demo")
+GENERATOR = "facility-demo"
+FRAMES_MANIFEST = "frames.json"
+"""Written into --frames DIR, listing the pictures: a later run replaces only those."""
+
+
+@contextmanager
+def _frames_folder(
+    frames: Path | None, previous: list[str], overwrite: bool
+) -> Iterator[Path | None]:
+    """A staging folder for the pictures, moved into ``frames`` when the run ends
+    (failed demos included); on an error nothing is written."""
+    from .. import output as out
+
+    if frames is None:
+        yield None
+        return
+    with out.staged_folder(frames) as stage:
+        yield stage
+        listing = {"generator": GENERATOR, "files": out.list_files(stage)}
+        (stage / FRAMES_MANIFEST).write_text(json.dumps(listing, indent=2) + "\n")
+        out.install_folder(stage, frames, previous, overwrite=overwrite, last=FRAMES_MANIFEST)
+
+
+@click.command("facility-demo", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("scene", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--waypoints",
@@ -33,7 +60,7 @@ def _table(steps: list[dict]) -> str:
 )
 @click.option(
     "--trials",
-    type=int,
+    type=click.IntRange(min=0),
     default=0,
     help="N trials, each on the facility rebuilt with seeded pose jitter (parallel)",
 )
@@ -56,54 +83,82 @@ def _table(steps: list[dict]) -> str:
     default=None,
     help="save PNGs of key moments (scene camera, wrist camera red mask)",
 )
-@click.option("--workers", type=int, default=None, help="parallel processes for --trials")
-def facility_demo_command(scene, waypoints, trials, seed, recipe, report, frames, workers):
+@click.option(
+    "--workers", type=click.IntRange(min=1), default=None, help="parallel processes for --trials"
+)
+@click.option(
+    "--overwrite",
+    is_flag=True,
+    help="replace a --report file, or write into a --frames folder, that we did not write",
+)
+def facility_demo_command(
+    scene, waypoints, trials, seed, recipe, report, frames, workers, overwrite
+):
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
     from .. import headless
 
     headless.configure()
+    from .. import output as out
+    from ..facility.recipe import load_recipe
     from ..facility.root import find_root
+    from .load import load
+    from .waypoints import check_names, read_waypoints
 
-    folder = scene.parent if scene.suffix == ".xml" else scene
-    manifest_path = folder / "facility.json"
-    if not manifest_path.is_file():
-        click.echo(f"error: {manifest_path}: no facility.json (build with make-facility)", err=True)
-        sys.exit(2)
+    # Everything the user gave is checked before anything runs or is written.
+    fac = load(scene)
     root = find_root()  # a checkout here or above, else the installed data
     waypoints = waypoints or root / "recipes" / "demo" / "imetro.yaml"
-    if trials and trials > 0:
-        from .trials import run_trials
-
-        manifest = json.loads(manifest_path.read_text())
-        recipe = recipe or root / (manifest.get("recipe_file") or "recipes/imetro.yaml")
-        seeds = list(range(seed, seed + trials))
-        results = run_trials(recipe, root, waypoints, seeds, workers=workers, frames=frames)
-        ok = sum(r["ok"] for r in results)
-        for r in results:
-            where = "" if r["ok"] else f" at '{r['failed_step']}'"
-            click.echo(
-                f"seed {r['seed']:>4}: {'success' if r['ok'] else 'FAIL'}{where}: {r['message']}"
-                f"  ({r['wall_time']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
-            )
-        click.echo(f"success rate: {ok}/{len(results)} ({100 * ok / len(results):.0f} %)")
-        out = {"trials": results, "successes": ok, "success_rate": ok / len(results)}
-        success = ok == len(results)
-    else:
-        from .demo import run_demo
-
-        res = run_demo(folder, waypoints, frames=frames, log=lambda *_: None)
-        out = res.to_json()
-        click.echo(_table(out["steps"]))
-        click.echo(
-            f"{'SUCCESS' if res.ok else 'FAILED'}: {res.message}"
-            f"  ({res.sim_time:.1f} s simulated in {res.wall_time:.1f} s wall, "
-            f"real-time factor {res.sim_time / max(res.wall_time, 1e-9):.1f})"
-        )
-        success = res.ok
+    spec = read_waypoints(waypoints)
+    check_names(spec, waypoints, fac)
     if report:
-        report.parent.mkdir(parents=True, exist_ok=True)
-        report.write_text(json.dumps(out, indent=2, default=float) + "\n")
+        out.check_file(report, overwrite, GENERATOR)
+    previous = out.check_folder(frames, overwrite, FRAMES_MANIFEST, GENERATOR) if frames else []
+    if trials:
+        recipe = recipe or root / (fac.manifest.get("recipe_file") or "recipes/imetro.yaml")
+        load_recipe(recipe)  # here, not in each trial's process
+    with _frames_folder(frames, previous, overwrite) as staged:
+        if trials:
+            result, success = _trials(recipe, root, waypoints, seed, trials, workers, staged)
+        else:
+            result, success = _once(fac, spec, staged)
+    if report:
+        out.write_json(report, result, GENERATOR)
     sys.exit(0 if success else 1)
+
+
+def _trials(recipe, root, waypoints, seed, trials, workers, frames) -> tuple[dict, bool]:
+    from .trials import run_trials
+
+    seeds = list(range(seed, seed + trials))
+    results = run_trials(recipe, root, waypoints, seeds, workers=workers, frames=frames)
+    ok = sum(r["ok"] for r in results)
+    for r in results:
+        where = "" if r["ok"] else f" at '{r['failed_step']}'"
+        click.echo(
+            f"seed {r['seed']:>4}: {'success' if r['ok'] else 'FAIL'}{where}: {r['message']}"
+            f"  ({r['wall_time']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
+        )
+    click.echo(f"success rate: {ok}/{len(results)} ({100 * ok / len(results):.0f} %)")
+    result = {"trials": results, "successes": ok, "success_rate": ok / len(results)}
+    return result, ok == len(results)
+
+
+def _once(fac, spec: dict, frames: Path | None) -> tuple[dict, bool]:
+    from .demo import Demo
+
+    demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
+    try:
+        res = demo.run()
+    finally:
+        demo.close()
+    result = res.to_json()
+    click.echo(_table(result["steps"]))
+    click.echo(
+        f"{'SUCCESS' if res.ok else 'FAILED'}: {res.message}"
+        f"  ({res.sim_time:.1f} s simulated in {res.wall_time:.1f} s wall, "
+        f"real-time factor {res.sim_time / max(res.wall_time, 1e-9):.1f})"
+    )
+    return result, res.ok
 
 
 def main() -> None:  # pragma: no cover

@@ -25,13 +25,13 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import yaml
 
 from . import ik, perception
 from .control import Controller, path_duration
 from .hinge import arc, hinge_axis, turned
 from .judge import ContactJudge, stowed
 from .load import Facility
+from .waypoints import check_names, read_waypoints
 
 
 class StepError(RuntimeError):
@@ -66,7 +66,8 @@ class DemoResult:
 
 
 def load_waypoints(path: str | Path) -> dict:
-    return yaml.safe_load(Path(path).read_text())
+    """The waypoints file, checked (an error names the file and the element)."""
+    return read_waypoints(path)
 
 
 def _frame(run: Demo, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -408,8 +409,10 @@ def run_demo(
 ) -> DemoResult:
     from .load import load
 
+    spec = load_waypoints(waypoints)
     fac = load(scene)
-    demo = Demo(fac, load_waypoints(waypoints), frames=frames, log=log)
+    check_names(spec, Path(waypoints), fac)
+    demo = Demo(fac, spec, frames=frames, log=log)
     try:
         return demo.run()
     finally:

@@ -6,21 +6,97 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from ..errors import FacilityError
+from ..facility.manifest import MANIFEST
 
-class LoadError(RuntimeError):
+SCENE = "scene.xml"
+
+
+class LoadError(FacilityError):
     """The facility lacks something the runner needs (a file, a role, a name)."""
 
 
-def lookup(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
-    """The id of a named object; LoadError naming what is missing."""
-    i = mujoco.mj_name2id(m, kind, name)
+def lookup(
+    m: mujoco.MjModel,
+    kind: mujoco.mjtObj,
+    name: str,
+    *,
+    file: Path | str | None = None,
+    element: str | None = None,
+) -> int:
+    """The id of a named object; LoadError naming what is missing (and where it was named)."""
+    i = mujoco.mj_name2id(m, kind, name) if isinstance(name, str) else -1
     if i < 0:
-        raise LoadError(f"the facility has no {kind.name[6:].lower()} named '{name}'")
+        what = kind.name[6:].lower()
+        raise LoadError(f"the facility has no {what} named '{name}'", file=file, element=element)
     return i
+
+
+def facility_files(path: str | Path) -> tuple[Path, Path]:
+    """``(scene.xml, facility.json)`` of a built facility given as its folder or a scene
+    file; a LoadError naming the path when it is not one."""
+    path = Path(path)
+    if path.is_dir():
+        scene = path / SCENE
+        if not scene.is_file():
+            raise LoadError(
+                f"no {SCENE}: not a facility folder (build one with make-facility)", file=path
+            )
+    elif not path.exists():
+        raise LoadError("does not exist", file=path)
+    elif path.suffix.lower() != ".xml":
+        raise LoadError("not a facility: give its folder or its scene.xml", file=path)
+    else:
+        scene = path
+    manifest = scene.parent / MANIFEST
+    if not manifest.is_file():
+        raise LoadError(
+            f"not a facility built by make-facility: no {MANIFEST} beside it", file=scene
+        )
+    return scene, manifest
+
+
+def read_manifest(path: Path) -> dict:
+    """A facility.json as a dict with a ``components`` mapping; LoadError otherwise."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else "not JSON"
+        raise LoadError(f"not a manifest of make-facility: {reason}", file=path) from None
+    if not isinstance(data, dict) or not isinstance(data.get("components"), dict):
+        raise LoadError(
+            "not a manifest of make-facility (no components)", file=path, element="components"
+        )
+    return data
+
+
+def compile_scene(scene: Path) -> mujoco.MjModel:
+    """The compiled scene; a LoadError with MuJoCo's reason when it cannot be loaded."""
+    try:
+        return mujoco.MjModel.from_xml_path(str(scene))
+    except ValueError as exc:
+        reason = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        raise LoadError(f"MuJoCo cannot load it: {reason}", file=scene) from None
+
+
+def open_facility(
+    path: str | Path, *, keyframe: str | None = "home"
+) -> tuple[Path, Path, dict, mujoco.MjModel, mujoco.MjData]:
+    """``(folder, manifest path, manifest, model, data)`` of a built facility, at its
+    ``keyframe`` (when the model has it) after ``mj_forward``."""
+    scene, manifest_path = facility_files(path)
+    manifest = read_manifest(manifest_path)
+    m = compile_scene(scene)
+    d = mujoco.MjData(m)
+    if keyframe is not None and mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0:
+        mujoco.mj_resetDataKeyframe(m, d, m.key(keyframe).id)
+    mujoco.mj_forward(m, d)
+    return scene.parent, manifest_path, manifest, m, d
 
 
 @dataclass
@@ -81,48 +157,88 @@ def _subtree(m: mujoco.MjModel, root: int) -> set[int]:
     return out
 
 
+ROBOT_ROLES = "components.robot.roles"
+_KINDS: dict[Any, str] = {list: "non-empty list", dict: "mapping", str: "name"}
+
+
+class _Roles:
+    """The robot's roles from facility.json, each field checked as it is read."""
+
+    def __init__(self, m: mujoco.MjModel, manifest: dict, path: Path):
+        robot = manifest["components"].get("robot")
+        roles = robot.get("roles") if isinstance(robot, dict) else None
+        if not isinstance(roles, dict) or not roles:
+            raise LoadError(
+                "the facility has no robot (built with robot=none?); the demo needs one",
+                file=path,
+                element=ROBOT_ROLES,
+            )
+        self.m, self.roles, self.path = m, roles, path
+
+    def value(self, key: str, kind: type | tuple[type, ...], where: str | None = None) -> Any:
+        section: Any = self.roles
+        if where is not None:
+            section = self.roles.get(where)
+            if not isinstance(section, dict):
+                raise LoadError("missing or not a mapping", file=self.path, element=self._at(where))
+        value = section.get(key)
+        if not isinstance(value, kind) or (kind is list and not value):
+            name = f"{where}.{key}" if where else key
+            raise LoadError(
+                f"missing or not a {_KINDS.get(kind, 'number')}",
+                file=self.path,
+                element=self._at(name),
+            )
+        return value
+
+    def ids(self, kind: mujoco.mjtObj, names: Any, at: str) -> np.ndarray:
+        return np.array([self.id(kind, n, at) for n in names], dtype=int)
+
+    def id(self, kind: mujoco.mjtObj, name: Any, at: str) -> int:
+        return lookup(self.m, kind, name, file=self.path, element=self._at(at))
+
+    def _at(self, name: str) -> str:
+        return f"{ROBOT_ROLES}.{name}"
+
+
 def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
-    """Load ``folder/scene.xml`` and ``folder/facility.json`` (or a scene.xml path)."""
-    folder = Path(folder)
-    if folder.suffix == ".xml":
-        folder = folder.parent
-    scene, manifest_path = folder / "scene.xml", folder / "facility.json"
-    for p in (scene, manifest_path):
-        if not p.is_file():
-            raise LoadError(f"{p} does not exist (build the facility with make-facility)")
-    manifest = json.loads(manifest_path.read_text())
-    m = mujoco.MjModel.from_xml_path(str(scene))
-    d = mujoco.MjData(m)
-    if keyframe is not None and mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0:
-        mujoco.mj_resetDataKeyframe(m, d, m.key(keyframe).id)
-    mujoco.mj_forward(m, d)
-    roles = manifest.get("components", {}).get("robot", {}).get("roles")
-    if not roles:
-        raise LoadError("facility.json lists no robot roles (was it built with robot=none?)")
+    """Load a built facility (its folder or scene.xml) and resolve the robot's roles."""
+    folder, manifest_path, manifest, m, d = open_facility(folder, keyframe=keyframe)
+    r = _Roles(m, manifest, manifest_path)
     J = mujoco.mjtObj
-    joints = np.array([lookup(m, J.mjOBJ_JOINT, n) for n in roles["joints"]])
-    acts = np.array([lookup(m, J.mjOBJ_ACTUATOR, n) for n in roles["actuators"]])
+    names = r.value("joints", list)
+    joints = r.ids(J.mjOBJ_JOINT, names, "joints")
+    acts = r.ids(J.mjOBJ_ACTUATOR, r.value("actuators", list), "actuators")
+    if len(acts) != len(joints):
+        raise LoadError(
+            "needs one actuator per joint", file=manifest_path, element=r._at("actuators")
+        )
     for j, a in zip(joints, acts, strict=True):
         if m.actuator_trnid[a, 0] != j:
             raise LoadError(
-                f"actuator '{m.actuator(a).name}' does not drive joint '{m.joint(j).name}'"
+                f"actuator '{m.actuator(a).name}' does not drive joint '{m.joint(j).name}'",
+                file=manifest_path,
+                element=r._at("actuators"),
             )
-    grip = roles["gripper"]
-    sites = {k: lookup(m, J.mjOBJ_SITE, v) for k, v in roles["sites"].items()}
-    cams = {k: lookup(m, J.mjOBJ_CAMERA, v) for k, v in roles["cameras"].items()}
+    sites = {k: r.id(J.mjOBJ_SITE, v, "sites") for k, v in r.value("sites", dict).items()}
+    cams = {k: r.id(J.mjOBJ_CAMERA, v, "cameras") for k, v in r.value("cameras", dict).items()}
+    grip_open = r.value("open", (int, float), "gripper")
+    grip_closed = r.value("closed", (int, float), "gripper")
     root = int(m.body_rootid[m.jnt_bodyid[joints[0]]])
     robot = Robot(
-        joint_names=list(roles["joints"]),
+        joint_names=list(names),
         joints=joints,
         qpos=m.jnt_qposadr[joints].copy(),
         dofs=m.jnt_dofadr[joints].copy(),
         actuators=acts,
         lower=m.jnt_range[joints, 0].copy(),
         upper=m.jnt_range[joints, 1].copy(),
-        gripper_actuator=lookup(m, J.mjOBJ_ACTUATOR, grip["actuator"]),
-        gripper_joints=np.array([lookup(m, J.mjOBJ_JOINT, n) for n in grip["joints"]]),
-        gripper_open=float(grip["open"]),
-        gripper_closed=float(grip["closed"]),
+        gripper_actuator=r.id(
+            J.mjOBJ_ACTUATOR, r.value("actuator", str, "gripper"), "gripper.actuator"
+        ),
+        gripper_joints=r.ids(J.mjOBJ_JOINT, r.value("joints", list, "gripper"), "gripper.joints"),
+        gripper_open=float(grip_open),
+        gripper_closed=float(grip_closed),
         sites=sites,
         cameras=cams,
         bodies=_subtree(m, root),

@@ -34,7 +34,6 @@ Command line (``rover_drive_command``)::
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
@@ -44,7 +43,7 @@ import click
 import mujoco
 import numpy as np
 
-from .load import LoadError, lookup
+from .load import LoadError, lookup, open_facility
 
 HOLD_GAIN = 10.0
 """Wheel hold (brake): commanded wheel speed per radian of wheel drift, 1/s."""
@@ -477,26 +476,23 @@ class RoverSim:
     """A built facility with its rovers, stepped with wheel and arm commands."""
 
     def __init__(self, folder: str | Path, *, keyframe: str | None = "home"):
-        folder = Path(folder)
-        if folder.suffix == ".xml":
-            folder = folder.parent
-        self.folder = folder
-        scene, manifest = folder / "scene.xml", folder / "facility.json"
-        for p in (scene, manifest):
-            if not p.is_file():
-                raise RoverError(f"{p} does not exist (build the facility with make-facility)")
-        self.manifest = json.loads(manifest.read_text())
-        self.m = mujoco.MjModel.from_xml_path(str(scene))
-        self.d = mujoco.MjData(self.m)
-        if (
-            keyframe is not None
-            and mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0
-        ):
-            mujoco.mj_resetDataKeyframe(self.m, self.d, self.m.key(keyframe).id)
-        mujoco.mj_forward(self.m, self.d)
-        self.rovers = find_rovers(self.m, self.manifest)
+        self.folder, path, self.manifest, self.m, self.d = open_facility(folder, keyframe=keyframe)
+        try:
+            self.rovers = find_rovers(self.m, self.manifest)
+        except (AttributeError, KeyError, TypeError, ValueError, IndexError) as exc:
+            # a hand-edited facility.json: name the file, not a traceback
+            raise RoverError(
+                f"malformed wheel roles ({type(exc).__name__}: {exc})", file=path
+            ) from None
+        except LoadError as exc:
+            raise RoverError(exc.detail, file=path, element="components.*.roles") from None
         if not self.rovers:
-            raise RoverError("facility.json lists no rover (no component with wheel roles)")
+            raise RoverError(
+                "the facility has no rover (no component with wheel roles); "
+                "rover-drive needs a MIRA3D world (recipes/mira3d-*.yaml)",
+                file=path,
+                element="components",
+            )
         self.home = {n: self.d.ctrl[r.arm].copy() for n, r in self.rovers.items()}
         self.arm_targets = {n: q.copy() for n, q in self.home.items()}
         self.odometry: dict[str, Odometry] = {}
@@ -678,11 +674,16 @@ class RoverSim:
     default=None,
     help="write the reports as JSON",
 )
+@click.option("--overwrite", is_flag=True, help="replace a --report file we did not write")
 def rover_drive_command(
-    scene: Path, names, distance, speed, turn, rate, arm, settle, report
+    scene: Path, names, distance, speed, turn, rate, arm, settle, report, overwrite
 ) -> None:
     """Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, then
     turn in place; print wheel odometry against the true pose."""
+    from .. import output as out
+
+    if report is not None:
+        out.check_file(report, overwrite, "rover-drive")  # before driving, not after
     try:
         sim = RoverSim(scene)
         chosen = list(names) or list(sim.rovers)
@@ -704,10 +705,7 @@ def rover_drive_command(
     except RoverError as exc:
         raise click.ClickException(str(exc)) from None
     if report is not None:
-        report.parent.mkdir(parents=True, exist_ok=True)
-        report.write_text(
-            json.dumps({"scene": str(scene), "tasks": results, "warnings": warnings}, indent=2)
-            + "\n"
-        )
+        data = {"scene": str(scene), "tasks": results, "warnings": warnings}
+        out.write_json(report, data, "rover-drive")
     if warnings:
         raise click.ClickException(f"MuJoCo warned while driving: {warnings}")
