@@ -153,6 +153,14 @@ RECIPES = {
         "r.yaml",
         ("r.yaml", "gravcomp"),
     ),
+    "roles_file_garbage": (
+        f"name: x\nxacro: {IMETRO_XACRO}\nflags: {{robot: imetro}}\n"
+        "placements: {robot: {xyz: [0, 0, 0]}}\ncomponents: {robot: {asset: imetro_robot, "
+        "standalone: facility/robots/imetro_robot/urdf/imetro_robot.urdf.xacro, flag: robot, "
+        "roles: garbage.yaml}}\n",
+        "r.yaml",
+        ("garbage.yaml", "roles file", "not a text file"),
+    ),
     "non_text_key": (f"1: x\nname: x\nxacro: {IMETRO_XACRO}\n", "r.yaml", ("r.yaml", "1")),
 }
 

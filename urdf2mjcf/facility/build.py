@@ -23,7 +23,7 @@ from .. import output as out
 from ..errors import InputError
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
-from .recipe import Pose2D, Recipe
+from .recipe import Pose2D, Recipe, read_yaml
 from .root import data_path, find_root  # noqa: F401  (find_root: callers import it here)
 from .scatter import rocks_arg, scatter
 
@@ -235,15 +235,13 @@ def _roles(
     root: Path, recipe_path: Path | None, table: dict[str, Component], present: list[str]
 ) -> dict[str, dict]:
     """Component name -> {prefix, roles}: what the manifest lists for each component."""
-    import yaml
-
     out: dict[str, dict] = {}
     for name in present:
         comp = table[name]
         roles = None
         file = data_path(root, recipe_path, comp.roles) if comp.roles else None
         if file is not None and file.is_file():
-            roles = yaml.safe_load(file.read_text())
+            roles = read_yaml(file, "roles file")  # a bad one is an error naming it
         out[name] = {"prefix": comp.prefix, "roles": roles}
     return out
 
