@@ -4,8 +4,10 @@ One ``.npz`` file per decomposition, named by a key that hashes everything the
 result depends on: the mesh (its content hash and the exact arrays handed to
 CoACD), the CoACD parameters, the versions of coacd, trimesh and numpy, and
 :data:`CACHE_FORMAT`. Files are written to a temporary name and moved into
-place with ``os.replace``, so concurrent writers and readers only ever see
-whole files; an unreadable or inconsistent entry is treated as a miss.
+place with ``os.replace`` (temporary names from ``mkstemp``, unique across
+processes), so concurrent conversions sharing one cache only ever see whole
+files. An entry that is truncated, garbage or inconsistent is a miss: the
+result is computed again and the entry rewritten. Nothing here is ever fatal.
 """
 
 from __future__ import annotations
@@ -14,9 +16,9 @@ import hashlib
 import io
 import json
 import logging
+import math
 import os
 import tempfile
-import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -98,8 +100,8 @@ class DecompositionCache:
             return None
         try:
             return _decode(data, key)
-        except (ValueError, KeyError, OSError, EOFError, zipfile.BadZipFile) as exc:
-            logger.warning("ignoring corrupt cache entry %s: %s", path, exc)
+        except Exception as exc:  # whatever garbage does to np.load: a miss, rebuilt
+            logger.info("ignoring corrupt cache entry %s (%s); computing it again", path, exc)
             return None
 
     def store(self, key: str, parts: list[MeshData]) -> None:
@@ -119,10 +121,11 @@ class DecompositionCache:
     def load_gap(self, key: str) -> float | None:
         """A stored hull gap (the convexity test is the slow part of a warm run)."""
         try:
-            data = json.loads((self.dir.parent / _GAP_SUBDIR / f"{key}.json").read_text())
-            return float(data["gap"]) if data.get("key") == key else None
-        except (OSError, ValueError, KeyError, TypeError):
+            data = json.loads((self.dir.parent / _GAP_SUBDIR / f"{key}.json").read_bytes())
+            gap = float(data["gap"]) if data.get("key") == key else math.nan
+        except Exception:  # absent, truncated or garbage: a miss, rebuilt
             return None
+        return gap if math.isfinite(gap) and gap >= 0.0 else None
 
     def store_gap(self, key: str, gap: float) -> None:
         self._write(
