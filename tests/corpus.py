@@ -17,6 +17,10 @@ from lxml import etree
 
 from urdf2mjcf.ir import Model
 
+# Reads what tinyxml2 (urdfdom, MuJoCo) reads: a stray XML declaration or
+# trailing content is skipped. A part it dropped would show as a mismatch.
+LENIENT = etree.XMLParser(recover=True, remove_blank_text=False)
+
 
 def example_robot_data_share() -> Path:
     """The share folder holding the ``example-robot-data`` package (a pip install)."""
@@ -33,13 +37,16 @@ def patched_urdf(source: Path, model: Model, dest: Path) -> Path:
     """The source URDF with every repaired or estimated inertial replaced by ours.
 
     Lets pinocchio check the dynamics of the whole robot, our repairs included,
-    while links whose inertial we kept remain exactly the user's.
+    while links whose inertial we kept remain exactly the user's. With nothing
+    to replace, the source itself (read by urdfdom as the user wrote it).
     """
-    tree = etree.parse(str(source))
     changed = {
         name: i for name, i in model.inertials.items() if i is not None and i.source != "urdf"
     }
     dropped = {name for name, i in model.inertials.items() if i is None}
+    if not changed and not dropped:
+        return source
+    tree = etree.parse(str(source), LENIENT)
     for link in tree.getroot().findall("link"):
         name = link.get("name")
         if name not in changed and name not in dropped:
@@ -390,7 +397,7 @@ def gathered_meshes(
     resolver = PackageResolver(urdf, package_paths=tuple(package_paths), use_environment=False)
     found: dict[str, bytes] = {}
     try:
-        root = etree.parse(str(expanded or urdf)).getroot()
+        root = etree.parse(str(expanded or urdf), LENIENT).getroot()
     except etree.XMLSyntaxError as exc:
         return f"not XML: {first_line(exc)}"
     for mesh in root.iter("mesh"):
