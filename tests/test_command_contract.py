@@ -62,10 +62,15 @@ def assert_one_error(proc: subprocess.CompletedProcess, *needles: str) -> str:
 
 @pytest.fixture(scope="module")
 def facilities(tmp_path_factory) -> dict[str, Path]:
-    """An iMETRO facility with its robot, and one built without (recipes/imetro-no-robot)."""
+    """An iMETRO facility with its robot, one built without (recipes/imetro-no-robot), and
+    a MIRA3D world with a rover."""
     base = tmp_path_factory.mktemp("facilities")
     out = {}
-    for name, recipe in (("imetro", "imetro.yaml"), ("norobot", "imetro-no-robot.yaml")):
+    for name, recipe in (
+        ("imetro", "imetro.yaml"),
+        ("norobot", "imetro-no-robot.yaml"),
+        ("floor", "mira3d-floor.yaml"),
+    ):
         report = build_facility(
             load_recipe(ROOT / "recipes" / recipe), base / name, root=ROOT, components=False
         )
@@ -274,6 +279,16 @@ def test_rover_drive_on_a_scene_without_a_rover(facility, facilities, work):
         (f"{facility}/facility.json", "no rover"),
         work,
         facilities[facility],
+    )
+
+
+def test_rover_drive_names_a_rover_the_world_lacks(facilities, work):
+    check(
+        "rover-drive",
+        [str(facilities["floor"]), "--rover", "nope", "--report", "r.json"],
+        ("floor/facility.json", "--rover", "no rover 'nope'; rovers: rover"),
+        work,
+        facilities["floor"],
     )
 
 

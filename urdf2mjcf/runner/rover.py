@@ -520,7 +520,11 @@ class RoverSim:
                 raise RoverError(f"name a rover: {', '.join(self.rovers)}")
             return next(iter(self.rovers.values()))
         if name not in self.rovers:
-            raise RoverError(f"no rover '{name}'; rovers: {', '.join(self.rovers)}")
+            raise RoverError(
+                f"no rover '{name}'; rovers: {', '.join(self.rovers)}",
+                file=self.folder / "facility.json",
+                element="--rover",
+            )
         return self.rovers[name]
 
     def drive(self, rover: Rover, v: float | None, w: float = 0.0) -> None:
