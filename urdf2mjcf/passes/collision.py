@@ -251,7 +251,7 @@ def _plan_meshes(
 
     Meshes with the same content (``LoadedMesh.sha256``) share one plan.
     """
-    cache = DecompositionCache(cfg.cache_dir or default_cache_dir()) if cfg.use_cache else None
+    cache = _open_cache(cfg)
     by_content: dict[str, _Plan | _Job] = {}
     mesh_notes: dict[str, list[Note]] = {}  # content hash -> its notes
     users: dict[str, list[MeshKey]] = {}  # content hash -> mesh keys using it
@@ -291,6 +291,16 @@ def _plan_meshes(
         for key in users[sha]:
             plans[key] = outcome
     return plans
+
+
+def _open_cache(cfg: CollisionConfig) -> DecompositionCache | None:
+    if not cfg.use_cache:
+        return None
+    try:
+        return DecompositionCache(cfg.cache_dir or default_cache_dir())
+    except RuntimeError as exc:  # no home directory to keep it in: work without one
+        logger.warning("no decomposition cache: %s", exc)
+        return None
 
 
 def _job_plan(job: _Job, parts: list[MeshData] | None, failure: str, notes: list[Note]) -> _Plan:
