@@ -44,7 +44,7 @@ def u_bracket(scale: float = 1.0) -> trimesh.Trimesh:
     return u
 
 
-def assert_crashing_bracket() -> trimesh.Trimesh:
+def aborting_bracket() -> trimesh.Trimesh:
     """The U bracket plus a closed sliver tetrahedron lying on its bottom face.
 
     The sliver's first triangle has two corners 2.25e-7 m below the face and one
@@ -166,9 +166,9 @@ def running(pid: int) -> bool:
 
 def test_coacd_abort_gives_the_hull_and_a_warning_and_the_rest_is_decomposed(tmp_path):
     """The issue's robot: CoACD aborts on one mesh. The command still exits 0, names
-    the mesh in a warning, writes its convex hull, and a fresh worker decomposes the
-    next mesh (one worker, so the crash leaves no worker behind for it)."""
-    crashing = assert_crashing_bracket()
+    the mesh in a warning and writes its convex hull; with ``-j 1`` the next mesh
+    needs a fresh worker, and gets decomposed."""
+    crashing = aborting_bracket()
     urdf = write_robot(tmp_path, {"crash.stl": crashing, "bracket.stl": u_bracket(0.5)})
     out = tmp_path / "out"
     code, err = finish(
