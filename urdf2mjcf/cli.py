@@ -320,6 +320,10 @@ def urdf2mjcf_main() -> None:
     run_command(urdf2mjcf_command)
 
 
+DEFAULT_RECIPE = "recipes/imetro.yaml"
+"""The recipe make-facility builds when none is named (relative to the facility root)."""
+
+
 @click.command("make-facility", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("recipe", required=False, type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
@@ -333,7 +337,7 @@ def urdf2mjcf_main() -> None:
     "sets",
     multiple=True,
     metavar="KEY=VALUE",
-    help="Change the recipe: a flag (hatch_4040=true) or a dotted field (jitter.ctb_yaw=0.2).",
+    help="Change the recipe: a flag (hatch_4040=true) or a dotted field (jitter.ctb.yaw=0.2).",
 )
 @click.option(
     "--seed", type=int, help="Seed for the recipe's pose uncertainty (none: nominal poses)."
@@ -390,9 +394,10 @@ def make_facility_command(
     _configure_logging(verbose, quiet)
     with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
         root = facility_root.find_root(root)
-        recipe_path = facility_root.recipe_file(root, recipe)
-        parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"))
-        if demo and not facility_build.has_robot(parsed):  # say so before building
+        recipe_path = facility_root.recipe_file(root, recipe, DEFAULT_RECIPE)
+        parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"), root)
+        # The demo drives the component named robot (its roles): say so before building.
+        if demo and not parsed.places("robot"):
             raise ConversionError(
                 "the recipe places no robot (see its flags and placements); --demo needs one",
                 file=recipe_path,

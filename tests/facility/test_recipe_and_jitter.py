@@ -27,10 +27,10 @@ def test_every_shipped_recipe_parses_and_names_an_existing_xacro(path):
 def test_set_changes_flags_and_dotted_fields(tmp_path):
     recipe = load_recipe(
         ROOT / "recipes" / "imetro.yaml",
-        {"hatch_4040": "true", "jitter.ctb_yaw": "0.5", "placements.trainer.yaw": "3.0"},
+        {"hatch_4040": "true", "jitter.ctb.yaw": "0.5", "placements.trainer.yaw": "3.0"},
     )
     assert recipe.flags["hatch_4040"] is True
-    assert recipe.jitter["ctb_yaw"] == 0.5
+    assert recipe.jitter_ranges("ctb") == {"position": 0.05, "yaw": 0.5}
     assert recipe.placements["trainer"].yaw == 3.0
 
 
@@ -55,41 +55,52 @@ def test_bad_recipe_is_an_input_error_naming_file_and_key(tmp_path, text, elemen
         assert element in str(info.value)
 
 
-POSES = {"trainer": Pose2D((1.0, 2.0, 0.0), 0.5), "hatch": Pose2D((-1.0, 0.0, 0.0), 0.0)}
-CTB = Pose2D((0.8, 0.8, 0.13), math.pi / 2)
-RANGES = {"position": 0.02, "yaw": 0.0175, "ctb_position": 0.05, "ctb_yaw": 0.2618}
+POSES = {
+    "arm": Pose2D((0.0, 0.0, 0.0), 0.0),
+    "trainer": Pose2D((1.0, 2.0, 0.0), 0.5),
+    "hatch": Pose2D((-1.0, 0.0, 0.0), 0.0),
+    "ctb": Pose2D((0.8, 0.8, 0.13), math.pi / 2),
+}
+MOCKUP = {"position": 0.02, "yaw": 0.0175}
+RANGES = {"arm": None, "trainer": MOCKUP, "hatch": MOCKUP, "ctb": {"position": 0.05, "yaw": 0.2618}}
+FREE = {"ctb"}
 
 
 def test_no_seed_keeps_nominal_poses():
-    placements, ctb, offsets = jittered(POSES, CTB, RANGES, None)
-    assert placements == POSES and ctb == CTB and offsets == {}
+    placements, offsets = jittered(POSES, RANGES, FREE, None)
+    assert placements == POSES and offsets == {}
 
 
 def test_same_seed_same_poses_and_offsets_within_ranges():
-    a = jittered(POSES, CTB, RANGES, 7)
-    b = jittered(POSES, CTB, RANGES, 7)
+    a = jittered(POSES, RANGES, FREE, 7)
+    b = jittered(POSES, RANGES, FREE, 7)
     assert a == b
-    placements, ctb, offsets = a
+    placements, offsets = a
+    assert set(offsets) == {"trainer", "hatch", "ctb"}, "a component without ranges never moves"
+    assert placements["arm"] == POSES["arm"]
     for name, delta in offsets.items():
-        pos = RANGES["ctb_position" if name == "ctb" else "position"]
-        yaw = RANGES["ctb_yaw" if name == "ctb" else "yaw"]
+        pos, yaw = RANGES[name]["position"], RANGES[name]["yaw"]
         assert abs(delta["dx"]) <= pos and abs(delta["dy"]) <= pos and abs(delta["dyaw"]) <= yaw
-    assert ctb.xyz[2] == CTB.xyz[2], "heights are not jittered"
+    assert placements["ctb"].xyz[2] == POSES["ctb"].xyz[2], "heights are not jittered"
 
 
 def test_different_seeds_move_poses_and_one_range_does_not_shift_another():
-    p1, c1, _ = jittered(POSES, CTB, RANGES, 1)
-    p2, c2, _ = jittered(POSES, CTB, RANGES, 2)
-    assert c1 != c2 and p1 != p2
-    # Turning off mockup jitter leaves the CTB's draw unchanged.
-    _, c_only, _ = jittered(POSES, CTB, {**RANGES, "position": 0.0, "yaw": 0.0}, 1)
-    assert c_only == c1
+    p1, _ = jittered(POSES, RANGES, FREE, 1)
+    p2, _ = jittered(POSES, RANGES, FREE, 2)
+    assert p1["ctb"] != p2["ctb"] and p1["trainer"] != p2["trainer"]
+    # Turning off mockup jitter leaves the free body's draw unchanged.
+    still = {**RANGES, "trainer": {"position": 0.0, "yaw": 0.0}, "hatch": {}}
+    p3, _ = jittered(POSES, still, FREE, 1)
+    assert p3["ctb"] == p1["ctb"] and p3["trainer"] == POSES["trainer"]
+    # A free body is drawn after the fixed ones: removing it leaves theirs unchanged.
+    p4, _ = jittered({k: v for k, v in POSES.items() if k != "ctb"}, RANGES, FREE, 1)
+    assert p4["trainer"] == p1["trainer"] and p4["hatch"] == p1["hatch"]
 
 
 def test_xacro_args_carry_flags_poses_and_simulation_options():
     recipe = load_recipe(ROOT / "recipes" / "imetro.yaml")
-    args = xacro_args(recipe, dict(recipe.placements), recipe.ctb)
+    args = xacro_args(recipe, dict(recipe.placements))
     assert args["hatch_4060"] == "true" and args["robot"] == "imetro"
     assert float(args["trainer_yaw"]) == recipe.placements["trainer"].yaw
-    assert float(args["ctb_z"]) == recipe.ctb.xyz[2]
+    assert float(args["ctb_z"]) == recipe.placements["ctb"].xyz[2]
     assert args["timestep"] == "0.002"

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -23,7 +23,7 @@ from .. import output as out
 from ..errors import InputError
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
-from .recipe import Pose2D, Recipe, read_yaml
+from .recipe import Component, Pose2D, Recipe, read_yaml
 from .root import data_path, find_root  # noqa: F401  (find_root: callers import it here)
 from .scatter import rocks_arg, scatter
 
@@ -32,60 +32,6 @@ log = logging.getLogger(__name__)
 PACKAGE_DIRS = ("facility/robots", "facility/mockups", "facility/worlds")
 """Folders whose sub-folders are packages (relative to the facility root)."""
 NAMED_PACKAGES = {"facility_common": "facility/common", "facility_meshes": "meshes"}
-
-
-@dataclass(frozen=True)
-class Component:
-    """An asset the facility may contain, and how to compile it on its own."""
-
-    asset: str
-    """Package folder name under facility/robots or facility/mockups."""
-    standalone: str
-    """Standalone xacro, relative to the facility root."""
-    flag: str | None = None
-    """The recipe flag that includes it (None: always, when it has a placement)."""
-    prefix: str = ""
-    """Prefix of its link and joint names in the facility xacro."""
-    roles: str | None = None
-    """A robot's roles file (names a runner looks up), relative to the facility root;
-    a component with roles is a robot and is compiled with the recipe's actuator file."""
-
-
-COMPONENTS: dict[str, Component] = {
-    "robot": Component(
-        "imetro_robot",
-        "facility/robots/imetro_robot/urdf/imetro_robot.urdf.xacro",
-        "robot",
-        "",
-        "facility/robots/imetro_robot/config/roles.yaml",
-    ),
-    "trainer": Component(
-        "stowage_unit",
-        "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro",
-        None,
-        "trainer_",
-    ),
-    "second_trainer": Component(
-        "stowage_unit",
-        "facility/mockups/stowage_unit/urdf/stowage_unit.urdf.xacro",
-        "second_trainer",
-        "second_trainer_",
-    ),
-    "hatch_4060": Component(
-        "hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4060", "hatch_4060_"
-    ),
-    "hatch_4040": Component(
-        "hatch", "facility/mockups/hatch/urdf/hatch.urdf.xacro", "hatch_4040", "hatch_4040_"
-    ),
-    "express_rack": Component(
-        "express_rack",
-        "facility/mockups/express_rack/urdf/express_rack.urdf.xacro",
-        "express_rack",
-        "express_rack_",
-    ),
-    "shelf": Component("shelf", "facility/mockups/shelf/urdf/shelf.urdf.xacro", "shelf", "shelf_"),
-    "ctb": Component("ctb", "facility/mockups/ctb/urdf/ctb.urdf.xacro", None, "ctb"),
-}
 
 
 @dataclass(frozen=True)
@@ -101,34 +47,11 @@ def _flag_text(value: object) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
 
-def components_of(recipe: Recipe) -> dict[str, Component]:
-    """The recipe's own component table, or the iMETRO one."""
-    if not recipe.components:
-        return COMPONENTS
-    return {name: Component(**spec) for name, spec in recipe.components.items()}
-
-
-def _enabled(recipe: Recipe, name: str) -> bool:
-    comp = components_of(recipe).get(name)
-    flag = comp.flag if comp else None
-    if flag is None:
-        return True
-    value = recipe.flags.get(flag, False)
-    return value not in (False, "false", "none", None, 0)
-
-
-def has_robot(recipe: Recipe) -> bool:
-    """Whether the facility will hold the robot the demo drives."""
-    return "robot" in recipe.placements and _enabled(recipe, "robot")
-
-
-def xacro_args(recipe: Recipe, placements: dict[str, Pose2D], ctb: Pose2D | None) -> dict[str, str]:
-    """The top-level xacro's arguments: flags, every pose, simulation options."""
+def xacro_args(recipe: Recipe, placements: dict[str, Pose2D]) -> dict[str, str]:
+    """The top-level xacro's arguments: flags, every pose (``<component>_x``, ``_y``,
+    ``_z``, ``_yaw``), simulation options."""
     args = {k: _flag_text(v) for k, v in recipe.flags.items()}
-    poses = dict(placements)
-    if ctb is not None:
-        poses["ctb"] = ctb
-    for name, pose in poses.items():
+    for name, pose in placements.items():
         for axis, value in zip("xyz", pose.xyz, strict=True):
             args[f"{name}_{axis}"] = repr(float(value))
         args[f"{name}_yaw"] = repr(float(pose.yaw))
@@ -180,13 +103,12 @@ def build_facility(
             file=recipe.path or top,
             element="xacro",
         )
-    placements = {n: p for n, p in recipe.placements.items() if _enabled(recipe, n)}
-    # The robot is the reference the demo is measured from: only mockups and the CTB move.
-    mockups = {n: p for n, p in placements.items() if n != "robot"}
-    moved, ctb, offsets = jittered(mockups, recipe.ctb, recipe.jitter, seed)
-    if "robot" in placements:
-        moved = {"robot": placements["robot"], **moved}
-    args = xacro_args(recipe, moved, ctb)
+    table = recipe.components
+    placements = {n: p for n, p in recipe.placements.items() if recipe.enabled(n)}
+    ranges = {n: recipe.jitter_ranges(n) for n in placements}
+    free = {n for n in placements if table[n].free}
+    moved, offsets = jittered(placements, ranges, free, seed)
+    args = xacro_args(recipe, moved)
     # Rocks: the recipe's seeded scatter (--seed replaces its seed), clear of every placement.
     rocks, rock_seed = [], None
     if recipe.rocks.get("count"):
@@ -201,8 +123,7 @@ def build_facility(
     with out.staged_folder(output) as stage:
         report = api.convert(top, stage / "scene.xml", args=args, scene=False, **options)
         built: dict[str, Path] = {}
-        table = components_of(recipe)
-        present = [n for n in table if n in moved or (n == "ctb" and ctb is not None)]
+        present = [n for n in table if n in moved]
         if components:
             assets = sorted({table[n].asset: table[n] for n in present}.items())
             for asset, comp in assets:
@@ -217,7 +138,7 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
-        data = manifest(stage / "scene.xml", recipe, root, seed, moved, ctb, offsets, built, roles)
+        data = manifest(stage / "scene.xml", recipe, root, seed, moved, offsets, built, roles)
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
         write_manifest(stage, data)
@@ -232,9 +153,9 @@ def build_facility(
 
 
 def _roles(
-    root: Path, recipe_path: Path | None, table: dict[str, Component], present: list[str]
+    root: Path, recipe_path: Path | None, table: Mapping[str, Component], present: list[str]
 ) -> dict[str, dict]:
-    """Component name -> {prefix, roles}: what the manifest lists for each component."""
+    """Component name -> {prefix, roles, free}: what the manifest lists for each component."""
     out: dict[str, dict] = {}
     for name in present:
         comp = table[name]
@@ -242,7 +163,7 @@ def _roles(
         file = data_path(root, recipe_path, comp.roles) if comp.roles else None
         if file is not None and file.is_file():
             roles = read_yaml(file, "roles file")  # a bad one is an error naming it
-        out[name] = {"prefix": comp.prefix, "roles": roles}
+        out[name] = {"prefix": comp.prefix, "roles": roles, "free": comp.free}
     return out
 
 

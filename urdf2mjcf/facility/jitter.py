@@ -1,33 +1,35 @@
-"""Seeded pose uncertainty: reproducible random offsets of mockups and the CTB.
+"""Seeded pose uncertainty: reproducible random offsets of the placed components.
 
-The paper names the lack of this as a lesson learned: the CTB pose was never
-randomised. Offsets are uniform in +-range, drawn from one
-``numpy.random.default_rng(seed)`` in a fixed order (components sorted by
-name, then the CTB), so the same seed gives the same facility and a
-different seed moves only the jittered poses.
+The paper names the lack of this as a lesson learned: the pose of the bag the
+robot grasps was never randomised. Offsets are uniform in +-range, drawn from one
+``numpy.random.default_rng(seed)`` in a fixed order: the fixed components sorted
+by name, then the free bodies sorted by name (so adding or removing a free body
+never changes a fixed component's draw). A component whose ranges are None (the
+reference a runner measures from) never moves and draws nothing. The same seed
+gives the same facility; a different seed moves only the jittered poses.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 
 import numpy as np
 
-from .recipe import Pose2D
+from .recipe import Pose2D, Ranges
 
 
 def jittered(
     placements: Mapping[str, Pose2D],
-    ctb: Pose2D | None,
-    ranges: Mapping[str, float],
+    ranges: Mapping[str, Ranges],
+    free: Collection[str],
     seed: int | None,
-) -> tuple[dict[str, Pose2D], Pose2D | None, dict[str, dict[str, float]]]:
-    """Poses after jitter, and the offsets applied (for the manifest).
-
-    ``seed=None``: the nominal poses, no offsets.
-    """
+) -> tuple[dict[str, Pose2D], dict[str, dict[str, float]]]:
+    """Poses after jitter (the unmoved ones first, then in the order drawn), and the
+    offsets applied (for the manifest). ``ranges``: component -> {position, yaw} (a
+    missing component: 0, 0) or None (never moves). ``seed=None``: the nominal poses,
+    no offsets."""
     if seed is None:
-        return dict(placements), ctb, {}
+        return dict(placements), {}
     rng = np.random.default_rng(seed)
     offsets: dict[str, dict[str, float]] = {}
 
@@ -39,11 +41,10 @@ def jittered(
         x, y, z = pose.xyz
         return Pose2D((x + delta["dx"], y + delta["dy"], z), pose.yaw + delta["dyaw"])
 
-    out = {
-        name: move(placements[name], ranges.get("position", 0.0), ranges.get("yaw", 0.0), name)
-        for name in sorted(placements)
-    }
-    moved_ctb = None
-    if ctb is not None:
-        moved_ctb = move(ctb, ranges.get("ctb_position", 0.0), ranges.get("ctb_yaw", 0.0), "ctb")
-    return out, moved_ctb, offsets
+    out = {n: p for n, p in placements.items() if n in ranges and ranges[n] is None}
+    moving = [n for n in placements if n not in out]
+    order = sorted(n for n in moving if n not in free) + sorted(n for n in moving if n in free)
+    for name in order:
+        r = ranges.get(name) or {}
+        out[name] = move(placements[name], r.get("position", 0.0), r.get("yaw", 0.0), name)
+    return out, offsets

@@ -80,6 +80,8 @@ def _components(m, placements: dict[str, Pose2D], roles: dict[str, dict]) -> dic
         if spec is not None:
             prefix = spec["prefix"]
             info["prefix"] = prefix
+            if spec.get("free"):
+                info["free"] = True
             if prefix:
                 info["joints"] = [j for j in joint_names if j.startswith(prefix)]
             if spec.get("roles"):
@@ -96,7 +98,6 @@ def manifest(
     root: Path,
     seed: int | None,
     placements: dict[str, Pose2D],
-    ctb: Pose2D | None,
     offsets: dict[str, dict[str, float]],
     components: dict[str, Path],
     roles: dict[str, dict] | None = None,
@@ -162,10 +163,11 @@ def manifest(
         "xacro": recipe.xacro,
         "seed": seed,
         "flags": dict(recipe.flags),
-        "jitter": dict(recipe.jitter) if seed is not None else {},
+        "jitter": {k: dict(v) if v is not None else False for k, v in recipe.jitter.items()}
+        if seed is not None
+        else {},
         "offsets": offsets,
         "components": _components(m, placements, roles or {}),
-        "ctb": {"pose": _pose(ctb)} if ctb is not None else None,
         "component_mjcf": {k: str(v) for k, v in sorted(components.items())},
         "simulation": {
             "timestep": float(m.opt.timestep),

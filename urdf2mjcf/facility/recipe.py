@@ -1,29 +1,35 @@
-"""Facility recipes: which top-level xacro, its flags, where things stand,
-how uncertain their poses are, and how to simulate.
+"""Facility recipes: which top-level xacro, which components it can hold, its flags,
+where things stand, how uncertain their poses are, and how to simulate.
 
-A recipe is a YAML file (see ``recipes/imetro.yaml``)::
+A recipe is a YAML file (see ``recipes/`` and docs/facility.md)::
 
-    name: imetro
-    xacro: facility/worlds/imetro/urdf/imetro_facility.urdf.xacro
-    flags: {robot: imetro, hatch_4060: true, hatch_4040: false, ...}
+    name: my-lab
+    xacro: worlds/my_lab.urdf.xacro
+    components: components/my_lab.yaml   # or the table itself, as a mapping
+    flags: {arm: true, shelf: false}
     placements:                       # component -> pose on the floor
-      trainer: {xyz: [-1.2, 1.6, 0], yaw: -1.5708}
-    ctb: {xyz: [0.8, 0.8, 0.13], yaw: 1.5708}
+      shelf: {xyz: [1.5, -0.5, 0], yaw: 0.5}
+      box: {xyz: [0.8, 0.8, 0.1], yaw: 1.57}
     jitter:                           # uniform +- ranges, applied with --seed
-      position: 0.02                  # m, mockups
-      yaw: 0.0175                     # rad, mockups
-      ctb_position: 0.05
-      ctb_yaw: 0.2618
+      default: {position: 0.02, yaw: 0.0175}   # m, rad: every placed component
+      box: {position: 0.05, yaw: 0.26}         # its own ranges
+      arm: false                               # never moves (the reference)
     simulation: {timestep: 0.002, integrator: implicitfast, solver: Newton}
-    actuator_config: facility/robots/imetro_robot/config/actuators.yaml
+    actuator_config: config/actuators.yaml
     rocks: {count: 24, seed: 3, area: [-30, 30, -30, 30]}   # optional, see scatter.py
 
-A relative path names the user's own file beside the recipe if there is
-one, else ours under the facility root (the folder holding ``facility/`` and
-``recipes/``; see ``root.py``). ``--set KEY=VALUE`` edits a recipe: a bare
-key is one of its flags (or a top-level field such as ``gravcomp``), a dotted
-key any field (``jitter.ctb_yaw=0.1``). A key the recipe does not know is an
-error naming the valid ones.
+The component table maps each component's name to ``{asset, standalone, flag,
+prefix, roles, free}`` (see :class:`Component`); the name is also the stem of its
+pose arguments in the xacro (``shelf_x``, ``shelf_y``, ``shelf_z``, ``shelf_yaw``)
+and its key under ``placements`` and ``jitter``. The builder knows no component by
+name: everything it does with one comes from this table.
+
+A relative path names the user's own file beside the recipe if there is one, else
+ours under the facility root (the folder holding ``facility/`` and ``recipes/``; see
+``root.py``). ``--set KEY=VALUE`` edits a recipe: a bare key is one of its flags (or
+a top-level field such as ``gravcomp``), a dotted key any field
+(``jitter.default.yaw=0.1``). A key the recipe does not know is an error naming the
+valid ones; every error names the file, the key and its line.
 """
 
 from __future__ import annotations
@@ -36,11 +42,11 @@ from typing import Any
 
 import yaml
 
-from ..errors import InputError
+from ..schema import Source, load
+from .root import data_path
 from .scatter import parse_rocks
-from .values import fail, number
 
-COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles")
+COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles", "free")
 TOP_KEYS = (
     "components",
     "name",
@@ -48,15 +54,15 @@ TOP_KEYS = (
     "xacro",
     "flags",
     "placements",
-    "ctb",
     "jitter",
     "simulation",
     "actuator_config",
     "gravcomp",
     "rocks",
 )
-SECTIONS = ("components", "flags", "placements", "ctb", "jitter", "simulation", "rocks")
-JITTER_KEYS = ("position", "yaw", "ctb_position", "ctb_yaw")
+SECTIONS = ("components", "flags", "placements", "jitter", "simulation", "rocks")
+JITTER_KEYS = ("position", "yaw")
+JITTER_DEFAULT = "default"
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
 SIMULATION_CHOICES = {
     "integrator": ("Euler", "RK4", "implicit", "implicitfast"),
@@ -74,6 +80,30 @@ class Pose2D:
 
 
 @dataclass(frozen=True)
+class Component:
+    """An asset the facility may contain, and how to compile it on its own."""
+
+    asset: str
+    """Package folder name (components/<asset>/ in the output)."""
+    standalone: str
+    """Standalone xacro (a world link plus the macro), a path as the recipe's others."""
+    flag: str | None = None
+    """The recipe flag that includes it (None: always, when it has a placement)."""
+    prefix: str = ""
+    """Prefix of its link and joint names in the facility xacro."""
+    roles: str | None = None
+    """A robot's roles file (names a runner looks up); a component with roles is a
+    robot and is compiled with the recipe's actuator file."""
+    free: bool = False
+    """A free body (it moves in the simulation): under --seed its offset is drawn after
+    those of the fixed components, so adding one never changes theirs."""
+
+
+Ranges = Mapping[str, float] | None
+"""A component's jitter: {position, yaw} (m, rad), or None: it never moves."""
+
+
+@dataclass(frozen=True)
 class Recipe:
     name: str
     path: Path | None
@@ -81,34 +111,54 @@ class Recipe:
     xacro: str
     flags: Mapping[str, Any]
     placements: Mapping[str, Pose2D]
-    ctb: Pose2D | None
-    jitter: Mapping[str, float] = field(default_factory=dict)
+    jitter: Mapping[str, Ranges] = field(default_factory=dict)
+    """``default`` and component names -> ranges (see :func:`jitter_ranges`)."""
     simulation: Mapping[str, Any] = field(default_factory=dict)
     actuator_config: str | None = None
     gravcomp: bool = False
     description: str = ""
-    components: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    """Component name -> {asset, standalone, flag, prefix, roles}; empty: the iMETRO table."""
+    components: Mapping[str, Component] = field(default_factory=dict)
+    """Component name -> how to place and compile it; empty: the world has none."""
     rocks: Mapping[str, Any] = field(default_factory=dict)
     """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
+
+    def jitter_ranges(self, name: str) -> Ranges:
+        """A component's jitter ranges: its own, else the default (missing ones are 0)."""
+        given = self.jitter.get(name, self.jitter.get(JITTER_DEFAULT) or {})
+        if given is None:
+            return None
+        return {k: float(given.get(k, 0.0)) for k in JITTER_KEYS}
+
+    def enabled(self, name: str) -> bool:
+        """Whether the component is in the facility: its flag (if any) is on."""
+        comp = self.components.get(name)
+        flag = comp.flag if comp else None
+        if flag is None:
+            return True
+        value = self.flags.get(flag, False)
+        return value not in (False, "false", "none", None, 0)
+
+    def places(self, name: str) -> bool:
+        """Whether the facility will hold the component: placed and enabled."""
+        return name in self.placements and self.enabled(name)
 
 
 def _names(keys: Any) -> str:
     return ", ".join(sorted(str(k) for k in keys))
 
 
-def _pose(value: Any, path: Path | None, key: str) -> Pose2D:
+def _pose(value: Any, src: Source, key: str) -> Pose2D:
     if not isinstance(value, Mapping) or "xyz" not in value:
-        raise fail(path, key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
+        raise src.fail(key, "a pose needs xyz: [x, y, z] (and optionally yaw)")
     unknown = set(value) - {"xyz", "yaw"}
     if unknown:
-        raise fail(path, key, f"unknown key(s) {_names(unknown)}; valid: xyz, yaw")
+        raise src.fail(key, f"unknown key(s) {_names(unknown)}; valid: xyz, yaw")
     xyz = value["xyz"]
     if not isinstance(xyz, (list, tuple)) or len(xyz) != 3:
-        raise fail(path, f"{key}.xyz", "needs three numbers")
+        raise src.fail(f"{key}.xyz", "needs three numbers")
     return Pose2D(
-        tuple(number(v, path, f"{key}.xyz") for v in xyz),  # type: ignore[arg-type]
-        number(value.get("yaw", 0.0), path, f"{key}.yaw"),
+        tuple(src.number(v, f"{key}.xyz.{i}") for i, v in enumerate(xyz)),  # type: ignore[arg-type]
+        src.number(value.get("yaw", 0.0), f"{key}.yaw"),
     )
 
 
@@ -120,18 +170,19 @@ def _parse_scalar(text: str) -> Any:
         return text
 
 
-def _set_flag(flags: Any, name: str, text: str, path: Path | None, where: str) -> None:
+def _set_flag(flags: Any, name: str, text: str, src: Source, where: str) -> None:
     """A --set of a flag: one the recipe declares, a boolean flag only true or false."""
     known = flags if isinstance(flags, Mapping) else {}
     if name not in known:
         valid = _names(known) or "none (the recipe has no flags)"
-        raise fail(path, where, f"unknown flag '{name}'; the recipe's flags: {valid}")
+        raise src.fail(where, f"unknown flag '{name}'; the recipe's flags: {valid}")
     if isinstance(known[name], bool) and not isinstance(_parse_scalar(text), bool):
-        raise fail(path, where, f"'{text}' is not true or false")
+        raise src.fail(where, f"'{text}' is not true or false")
 
 
-def apply_sets(data: dict, sets: Mapping[str, str], path: Path | None) -> dict:
-    """``--set`` edits: a bare key is a flag (or a top-level field), a dotted key any field."""
+def apply_sets(data: dict, sets: Mapping[str, str], src: Source) -> dict:
+    """``--set`` edits: a bare key is a flag (or a top-level field), a dotted key any field.
+    The keys set are marked in ``src``: an error in their values names no line of the file."""
     data = copy.deepcopy(data)
     for key, text in sets.items():
         where = f"--set {key}"
@@ -141,111 +192,133 @@ def apply_sets(data: dict, sets: Mapping[str, str], path: Path | None) -> dict:
             parts = ["flags", key]
         if parts[0] not in TOP_KEYS or not all(parts):
             valid = f"a flag, or a field under {', '.join(TOP_KEYS)}"
-            raise fail(path, where, f"unknown key '{parts[0]}'; valid: {valid}")
+            raise src.fail(where, f"unknown key '{parts[0]}'; valid: {valid}")
         if len(parts) == 1 and key in SECTIONS:
-            raise fail(path, where, f"'{key}' is a section; set one of its fields ({key}.NAME)")
+            raise src.fail(where, f"'{key}' is a section; set one of its fields ({key}.NAME)")
         if parts[0] == "flags":
             if len(parts) != 2:
-                raise fail(path, where, "a flag is one name (hatch_4040=true)")
-            _set_flag(data.get("flags"), parts[1], text, path, where)
+                raise src.fail(where, "a flag is one name (--set NAME=VALUE)")
+            _set_flag(data.get("flags"), parts[1], text, src, where)
         target = data
         for part in parts[:-1]:
             target = target.setdefault(part, {})
             if not isinstance(target, dict):
-                raise fail(path, where, f"'{part}' is not a section")
+                raise src.fail(where, f"'{part}' is not a section")
         target[parts[-1]] = value
+        src.overridden.add(tuple(parts))
     return data
 
 
-def _section(data: Mapping, key: str, path: Path | None) -> dict:
-    """An optional mapping section (absent or empty: {})."""
-    value = data.get(key)
-    if value is None:
-        return {}
-    if not isinstance(value, Mapping):
-        raise fail(path, key, f"'{value}' is not a mapping of keys to values")
-    return {str(k): v for k, v in value.items()}
-
-
-def _text(data: Mapping, key: str, path: Path | None, *, required: bool = False) -> str | None:
-    value = data.get(key)
-    if value is None or value == "":
-        if required:
-            raise fail(path, key, "is required")
-        return None
-    if not isinstance(value, str):
-        raise fail(path, key, f"'{value}' is not text")
-    return value
-
-
-def _flags(data: Mapping, path: Path | None) -> dict:
-    flags = _section(data, "flags", path)
+def _flags(data: Mapping, src: Source) -> dict:
+    flags = src.mapping(data.get("flags"), "flags")
     for name, value in flags.items():
         if not isinstance(value, (str, bool, int, float)):
             message = "a flag is one value: true, false, a number or a name"
-            raise fail(path, f"flags.{name}", message)
+            raise src.fail(f"flags.{name}", message)
     return flags
 
 
-def _component(spec: Any, path: Path | None, where: str) -> dict:
+def _component(spec: Any, src: Source, where: str) -> Component:
     if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
-        raise fail(path, where, "needs asset and standalone (and optionally flag, prefix, roles)")
-    unknown = set(spec) - set(COMPONENT_KEYS)
-    if unknown:
-        valid = ", ".join(COMPONENT_KEYS)
-        raise fail(path, where, f"unknown key(s) {_names(unknown)}; valid: {valid}")
-    out = {}
+        message = "needs asset and standalone (and optionally flag, prefix, roles, free)"
+        raise src.fail(where, message)
+    src.known(spec, COMPONENT_KEYS, where)
+    out: dict[str, Any] = {}
     for key in COMPONENT_KEYS:
-        if key in spec:
-            value = spec[key]
-            optional = key in ("flag", "roles")
-            if not (isinstance(value, str) or (optional and value is None)):
-                raise fail(path, f"{where}.{key}", f"'{value}' is not text")
-            out[key] = value
+        if key not in spec:
+            continue
+        value = spec[key]
+        if key == "free":
+            if not isinstance(value, bool):
+                raise src.fail(f"{where}.{key}", f"'{value}' is not true or false")
+        elif not (isinstance(value, str) or (key in ("flag", "roles") and value is None)):
+            raise src.fail(f"{where}.{key}", f"'{value}' is not text")
+        out[key] = value
+    return Component(**out)
+
+
+def _components(data: Mapping, src: Source, root: Path | None) -> dict[str, Component]:
+    """The recipe's component table: a mapping, or a YAML file holding one (a path as
+    the recipe's others), so that the recipes of one world share one table."""
+    value = data.get("components")
+    table_src = src
+    if isinstance(value, str):
+        recipe = Path(src.file) if src.file is not None else None
+        beside = recipe.resolve().parent if recipe is not None else Path.cwd()
+        file = data_path(root, recipe, value) if root is not None else beside / value
+        value, table_src = load(file, "component table")
+        prefix = ""
+    else:
+        prefix = "components."
+    table = table_src.mapping(value, prefix.rstrip(".") or "components", "a component table")
+    return {name: _component(spec, table_src, prefix + name) for name, spec in table.items()}
+
+
+def _jitter(data: Mapping, src: Source, components: Mapping[str, Component]) -> dict:
+    section = src.mapping(data.get("jitter"), "jitter")
+    src.known(section, [JITTER_DEFAULT, *components], "jitter")
+    out: dict[str, Ranges] = {}
+    for name, value in section.items():
+        where = f"jitter.{name}"
+        if value is False or value is None:
+            if name == JITTER_DEFAULT:
+                raise src.fail(where, "the default ranges are a mapping {position, yaw}")
+            out[name] = None
+            continue
+        ranges = src.mapping(value, where, "{position, yaw} or false (never moves)")
+        src.known(ranges, JITTER_KEYS, where)
+        out[name] = {}
+        for key, v in ranges.items():
+            out[name][key] = src.number(v, f"{where}.{key}")  # type: ignore[index]
+            if out[name][key] < 0:  # type: ignore[index]
+                raise src.fail(f"{where}.{key}", "a jitter range is >= 0")
     return out
 
 
-def parse_recipe(data: Any, path: Path | None) -> Recipe:
-    if not isinstance(data, Mapping):
-        raise fail(path, "recipe", "a recipe is a mapping of keys to values")
-    unknown = set(data) - set(TOP_KEYS)
-    if unknown:
-        raise fail(path, _names(unknown), f"unknown key; valid: {', '.join(TOP_KEYS)}")
-    name = _text(data, "name", path, required=True)
-    xacro = _text(data, "xacro", path, required=True)
-    description = _text(data, "description", path) or ""
-    actuator_config = _text(data, "actuator_config", path)
-    gravcomp = data.get("gravcomp", False)
-    if not isinstance(gravcomp, bool):
-        raise fail(path, "gravcomp", f"'{gravcomp}' is not true or false")
-    flags = _flags(data, path)
-    placements = {
-        where: _pose(value, path, f"placements.{where}")
-        for where, value in _section(data, "placements", path).items()
-    }
-    ctb = _pose(data["ctb"], path, "ctb") if data.get("ctb") else None
-    jitter = {}
-    for key, value in _section(data, "jitter", path).items():
-        if key not in JITTER_KEYS:
-            raise fail(path, f"jitter.{key}", f"unknown key; valid: {', '.join(JITTER_KEYS)}")
-        jitter[key] = number(value, path, f"jitter.{key}")
-        if jitter[key] < 0:
-            raise fail(path, f"jitter.{key}", "a jitter range is >= 0")
-    simulation = _section(data, "simulation", path)
+def _simulation(data: Mapping, src: Source) -> dict:
+    simulation = src.mapping(data.get("simulation"), "simulation")
     for key, value in simulation.items():
         where = f"simulation.{key}"
         if key not in SIMULATION_KEYS:
-            raise fail(path, where, f"unknown key; valid: {', '.join(SIMULATION_KEYS)}")
+            raise src.fail(where, f"unknown key; valid: {', '.join(SIMULATION_KEYS)}")
         if key in SIMULATION_CHOICES:
             if str(value) not in SIMULATION_CHOICES[key]:
                 valid = ", ".join(SIMULATION_CHOICES[key])
-                raise fail(path, where, f"'{value}' is not one of {valid}")
-        elif number(value, path, where) <= 0:
-            raise fail(path, where, "must be > 0")
-    components = {
-        cname: _component(spec, path, f"components.{cname}")
-        for cname, spec in _section(data, "components", path).items()
+                raise src.fail(where, f"'{value}' is not one of {valid}")
+        elif src.number(value, where) <= 0:
+            raise src.fail(where, "must be > 0")
+    return simulation
+
+
+def parse_recipe(
+    data: Any, path: Path | None | Source, root: Path | None = None
+) -> Recipe:
+    """A recipe from its data; ``path`` names the file (or is its :class:`Source`, which
+    gives errors their lines); ``root`` is where a component table not beside it lies."""
+    src = path if isinstance(path, Source) else Source(path)
+    path = Path(src.file) if src.file is not None else None
+    if not isinstance(data, Mapping):
+        raise src.fail("recipe", "a recipe is a mapping of keys to values")
+    src.known({str(k): v for k, v in data.items()}, TOP_KEYS)
+    name = src.text(data.get("name"), "name", required=True)
+    xacro = src.text(data.get("xacro"), "xacro", required=True)
+    description = src.text(data.get("description"), "description") or ""
+    actuator_config = src.text(data.get("actuator_config"), "actuator_config")
+    gravcomp = data.get("gravcomp", False)
+    if not isinstance(gravcomp, bool):
+        raise src.fail("gravcomp", f"'{gravcomp}' is not true or false")
+    flags = _flags(data, src)
+    placements = {
+        where: _pose(value, src, f"placements.{where}")
+        for where, value in src.mapping(data.get("placements"), "placements").items()
     }
+    components = _components(data, src, root)
+    for where in placements:
+        if where not in components:
+            valid = _names(components) or "none (the recipe has no components)"
+            raise src.fail(f"placements.{where}", f"unknown component; the recipe's: {valid}")
+    jitter = _jitter(data, src, components)
+    simulation = _simulation(data, src)
     return Recipe(
         name=str(name),
         components=components,
@@ -253,7 +326,6 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
         xacro=str(xacro),
         flags=flags,
         placements=placements,
-        ctb=ctb,
         jitter=jitter,
         simulation=simulation,
         actuator_config=actuator_config,
@@ -266,23 +338,17 @@ def parse_recipe(data: Any, path: Path | None) -> Recipe:
 def read_yaml(path: Path, what: str) -> Any:
     """A YAML file's data; an InputError naming the file (and the line) when it is
     missing, unreadable, not text or not YAML."""
-    try:
-        return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read {what}: {exc.strerror}", file=path) from None
-    except UnicodeDecodeError:
-        raise InputError(f"cannot read {what}: not a text file", file=path) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise InputError(f"{what} is not valid YAML: {problem}", file=path, element=where) from None
+    return load(path, what)[0]
 
 
-def load_recipe(path: Path, sets: Mapping[str, str] | None = None) -> Recipe:
-    data = read_yaml(path, "recipe")
+def load_recipe(
+    path: Path, sets: Mapping[str, str] | None = None, root: Path | None = None
+) -> Recipe:
+    """The recipe in ``path`` with the ``--set`` edits ``sets``; ``root``: the facility
+    root, where paths the recipe names are looked up when they are not beside it."""
+    data, src = load(path, "recipe")
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise fail(Path(path), "recipe", "a recipe is a mapping of keys to values")
-    return parse_recipe(apply_sets(dict(data), sets or {}, path), Path(path))
+        raise src.fail("recipe", "a recipe is a mapping of keys to values")
+    return parse_recipe(apply_sets(dict(data), sets or {}, src), src, root)

@@ -79,9 +79,10 @@ def default_output(root: Path, name: str) -> Path:
     return Path("build") / name if is_installed(root) else root / "build" / name
 
 
-def recipe_file(root: Path, given: Path | None, default: str = "recipes/imetro.yaml") -> Path:
+def recipe_file(root: Path, given: Path | None, default: str) -> Path:
     """The recipe a user named: the path as given if it exists, else the same relative
-    path under the root (``make-facility recipes/mira3d-moon.yaml`` from any folder)."""
+    path under the root (``make-facility recipes/mira3d-moon.yaml`` from any folder);
+    none named: ``default`` under the root."""
     if given is None:
         return root / default
     given = Path(given)

@@ -128,14 +128,13 @@ class Facility:
     robot: Robot
 
     def component_bodies(self, name: str) -> set[int]:
-        """Ids of the bodies of a component of the manifest (by its prefix)."""
+        """Ids of the bodies of a component of the manifest (by its prefix; a free body's
+        prefix is its body's name)."""
         comp = self.manifest["components"].get(name)
         if comp is None:
             return set()
         prefix = comp.get("prefix", "")
         m = self.model
-        if name == "ctb":
-            return {b for b in range(1, m.nbody) if m.body(b).name == prefix}
         return {b for b in range(1, m.nbody) if prefix and m.body(b).name.startswith(prefix)}
 
     def body(self, name: str) -> int:
