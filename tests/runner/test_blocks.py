@@ -8,9 +8,10 @@ import math
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from urdf2mjcf.runner import ik, perception
-from urdf2mjcf.runner.hinge import arc, axis_rotation, hinge_axis
+from urdf2mjcf.runner.hinge import arc, hinge_axis
 
 STRAP = """
 <mujoco>
@@ -121,7 +122,7 @@ def test_hinge_arc_lies_on_the_circle_at_the_right_angles(hold):
         c = np.dot(radial, radial0) / np.linalg.norm(radial0) ** 2
         s = np.dot(np.cross(radial0, radial), axis) / np.linalg.norm(radial0) ** 2
         assert math.atan2(s, c) == pytest.approx(ang)  # right-handed about the axis
-        assert np.allclose(R, rot if hold else axis_rotation(axis, ang) @ rot)
+        assert np.allclose(R, rot if hold else Rotation.from_rotvec(ang * axis).as_matrix() @ rot)
     # turning the lid joint by the same angle carries the start point onto the arc
     d.qpos[0] = poses[-1][0]
     mujoco.mj_forward(m, d)
@@ -195,3 +196,28 @@ def test_ik_respects_joint_limits():
     # limits of a hinge: tool position that needs j2 beyond +2 is not taken by passing it
     res = ik.solve(m, d, site, [0.0, 0.0, -0.6], None, qa, da, lo, hi, max_iter=100)
     assert np.all(res.q >= lo - 1e-12) and np.all(res.q <= hi + 1e-12)
+
+
+def test_ik_prefers_the_solution_nearest_its_seed():
+    # 7 joints for a 6D pose: a family of solutions; the posture term picks one near the seed
+    m, d, qa, da, lo, hi = _arm()
+    site = m.site("tool").id
+    q_true = np.array([0.4, 0.5, 0.3, -0.8, 0.6, 0.2, -0.4])
+    target_p, target_R = ik.site_pose(m, d, site, q_true, qa)
+    seed = q_true + np.array([0.2, -0.1, 0.1, 0.1, -0.1, 0.1, 0.1])
+    res = ik.solve(m, d, site, target_p, target_R, qa, da, lo, hi, q0=seed)
+    assert res.ok
+    assert np.linalg.norm(res.q - seed) <= np.linalg.norm(q_true - seed)
+
+
+def test_ik_moves_only_its_own_joints():
+    m, d, qa, da, lo, hi = _arm()
+    site = m.site("tool").id
+    q_true = np.array([0.4, 0.5, 0.3, -0.8, 0.6, 0.2, -0.4])
+    target_p, _ = ik.site_pose(m, d, site, q_true, qa)
+    # without j1 (the base's turn, at 0 in d) the target off the x-z plane is out of reach
+    own = np.delete(qa, 1)
+    res = ik.solve(m, d, site, target_p, None, own, np.delete(da, 1), lo[own], hi[own])
+    assert not res.ok and res.pos_err > 0.05
+    p, _ = ik.site_pose(m, d, site, res.q, own)  # j1 still where d has it
+    assert np.linalg.norm(p - target_p) == pytest.approx(res.pos_err)

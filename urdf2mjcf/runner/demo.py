@@ -25,6 +25,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
 from . import ik, perception
 from .control import Controller, path_duration
@@ -106,6 +107,15 @@ class Demo:
         self.log = log
         self._cams: dict[int, perception.Camera] = {}
         self._scene_renderer: mujoco.Renderer | None = None
+        self._ik = ik.ArmIK(
+            self.m,
+            self.site,
+            self.r.qpos,
+            self.r.dofs,
+            self.r.lower,
+            self.r.upper,
+            weights=self.weights,
+        )
 
     # ------------------------------------------------------------ helpers
     def camera(self, role: str) -> perception.Camera:
@@ -141,19 +151,7 @@ class Demo:
             Image.fromarray(extra).save(self.frames / f"{name}_wrist.png")
 
     def ik(self, pos, rot, q0=None) -> np.ndarray:
-        res = ik.solve(
-            self.m,
-            self.d,
-            self.site,
-            pos,
-            rot,
-            self.r.qpos,
-            self.r.dofs,
-            self.r.lower,
-            self.r.upper,
-            q0=q0,
-            weights=self.weights,
-        )
+        res = self._ik.solve(self.d, pos, rot, q0=q0)
         if not res.ok:
             raise StepError(
                 f"no IK solution for the {self.m.site(self.site).name} pose at "
@@ -173,15 +171,10 @@ class Demo:
             dist = np.linalg.norm(p - p_prev)
             ang = np.linalg.norm(ik.rot_err(R, R_prev))
             n = max(1, int(math.ceil(max(dist / spacing, ang / math.radians(2)))))
-            qa, qb = np.zeros(4), np.zeros(4)
-            mujoco.mju_mat2Quat(qa, R_prev.ravel())
-            mujoco.mju_mat2Quat(qb, np.ascontiguousarray(R).ravel())
+            turn = Slerp([0.0, 1.0], Rotation.from_matrix([R_prev, R]))
             for k in range(1, n + 1):
                 s = k / n
-                quat = _slerp(qa, qb, s)
-                Rk = np.zeros(9)
-                mujoco.mju_quat2Mat(Rk, quat)
-                q = self.ik(p_prev + s * (p - p_prev), Rk.reshape(3, 3), q0=q)
+                q = self.ik(p_prev + s * (p - p_prev), turn(s).as_matrix(), q0=q)
                 path.append(q)
             p_prev, R_prev = p, R
         joints = np.array(path)
@@ -269,7 +262,6 @@ class Demo:
             )
             self.ctl.settle(timeout=0.5)
             prev = ang
-        self.lid_angle = math.degrees(self.d.qpos[self.m.jnt_qposadr[j]])
 
     def _do_gripper(self, step):
         what = step["action"]
@@ -345,8 +337,6 @@ class Demo:
                 f"{name:<24} {'ok' if ok else 'FAIL':<5} {res.duration:7.2f} s  "
                 f"{', '.join(contacts) if contacts else '-'}" + (f"\n  {msg}" if msg else "")
             )
-            if step.get("frame") and self.frames is not None and step["kind"] != "look":
-                pass
             if step.get("snapshot"):
                 self.snapshot(name)
             if not ok:
@@ -391,17 +381,6 @@ class Demo:
                     f"above the floor, expected > {check['bag_lifted']})"
                 )
         return ""
-
-
-def _slerp(qa: np.ndarray, qb: np.ndarray, s: float) -> np.ndarray:
-    d = float(np.dot(qa, qb))
-    if d < 0:
-        qb, d = -qb, -d
-    if d > 0.9995:
-        q = qa + s * (qb - qa)
-        return q / np.linalg.norm(q)
-    th = math.acos(d)
-    return (math.sin((1 - s) * th) * qa + math.sin(s * th) * qb) / math.sin(th)
 
 
 def run_demo(

@@ -12,14 +12,7 @@ import math
 
 import mujoco
 import numpy as np
-
-
-def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """3x3 rotation by ``angle`` (rad) about the unit ``axis`` (right hand)."""
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
+from scipy.spatial.transform import Rotation
 
 
 def hinge_axis(m: mujoco.MjModel, d: mujoco.MjData, joint: int) -> tuple[np.ndarray, np.ndarray]:
@@ -57,7 +50,8 @@ def turned(
     hold_orientation: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pose (pos, rot) turned by ``angle`` (rad) about the hinge axis."""
-    R = axis_rotation(axis, angle)
+    a = np.asarray(axis, float)
+    R = Rotation.from_rotvec(angle * a / np.linalg.norm(a)).as_matrix()
     return anchor + R @ (np.asarray(pos, float) - anchor), (
         rot.copy() if hold_orientation else R @ rot
     )
