@@ -107,6 +107,3 @@ class Controller:
                 return True
             self.step()
         return False
-
-    def tracking_error(self) -> float:
-        return float(np.abs(self.d.qpos[self.r.qpos] - self.target).max())

@@ -1,0 +1,179 @@
+"""A built facility with its rovers, stepped with wheel and arm commands through the
+actuators only; every rover's odometry integrated after every step."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ..load import LoadError, open_facility
+from .odometry import Odometry, _rotation, _yaw, true_pose
+from .report import TaskReport, _Track
+from .roles import Rover, RoverError, find_rovers
+from .tasks import ArmWave, Task
+
+HOLD_GAIN = 10.0
+"""Wheel hold (brake): commanded wheel speed per radian of wheel drift, 1/s."""
+
+
+class RoverSim:
+    """A built facility with its rovers, stepped with wheel and arm commands."""
+
+    def __init__(self, folder: str | Path, *, keyframe: str | None = "home"):
+        self.folder, path, self.manifest, self.m, self.d = open_facility(folder, keyframe=keyframe)
+        try:
+            self.rovers = find_rovers(self.m, self.manifest)
+        except (AttributeError, KeyError, TypeError, ValueError, IndexError) as exc:
+            # a hand-edited facility.json: name the file, not a traceback
+            raise RoverError(
+                f"malformed wheel roles ({type(exc).__name__}: {exc})", file=path
+            ) from None
+        except LoadError as exc:
+            raise RoverError(exc.detail, file=path, element="components.*.roles") from None
+        if not self.rovers:
+            raise RoverError(
+                "the facility has no rover (no component with wheel roles); "
+                "rover-drive needs a MIRA3D world (recipes/mira3d-*.yaml)",
+                file=path,
+                element="components",
+            )
+        self.home = {n: self.d.ctrl[r.arm].copy() for n, r in self.rovers.items()}
+        self.arm_targets = {n: q.copy() for n, q in self.home.items()}
+        self.odometry: dict[str, Odometry] = {}
+        self._hold: dict[str, np.ndarray] = {}
+        self.reset_odometry()
+
+    @property
+    def dt(self) -> float:
+        return float(self.m.opt.timestep)
+
+    def reset_odometry(self, name: str | None = None) -> None:
+        """Odometry of ``name`` (or every rover) restarted at its true pose."""
+        for n, r in self.rovers.items():
+            if name is not None and n != name:
+                continue
+            pose = true_pose(self.m, self.d, r)
+            q = self.d.sensordata[r.orientation : r.orientation + 4]
+            self.odometry[n] = Odometry(
+                pose.x, pose.y, pose.yaw, self.d.xpos[r.base].copy(), _imu_yaw=_yaw(q)
+            )
+
+    def rover(self, name: str | None = None) -> Rover:
+        if name is None:
+            if len(self.rovers) != 1:
+                raise RoverError(f"name a rover: {', '.join(self.rovers)}")
+            return next(iter(self.rovers.values()))
+        if name not in self.rovers:
+            raise RoverError(
+                f"no rover '{name}'; rovers: {', '.join(self.rovers)}",
+                file=self.folder / "facility.json",
+                element="--rover",
+            )
+        return self.rovers[name]
+
+    def drive(self, rover: Rover, v: float | None, w: float = 0.0) -> None:
+        """Wheel velocity commands for a body speed ``v`` (m/s) and yaw rate ``w`` (rad/s);
+        ``v=None``: brake (hold the wheels)."""
+        if v is None:
+            self.brake(rover)
+            return
+        self._hold.pop(rover.name, None)
+        lo, hi = rover.wheel_ctrl
+        left = (v - w * rover.track / 2) / rover.radius
+        right = (v + w * rover.track / 2) / rover.radius
+        # scale both sides together so a saturated command keeps its curvature
+        scale = max(1.0, abs(left) / hi, abs(right) / hi)
+        self.d.ctrl[rover.left] = np.clip(left / scale, lo, hi)
+        self.d.ctrl[rover.right] = np.clip(right / scale, lo, hi)
+
+    def brake(self, rover: Rover) -> None:
+        """Hold the wheels where they are: a position loop through the velocity servos
+        (``HOLD_GAIN`` rad/s per rad), as a motor controller holds a rover on a slope; a
+        velocity servo alone lets it creep downhill."""
+        if rover.name not in self._hold:
+            self._hold[rover.name] = self.d.qpos[rover.wheel_qpos].copy()
+        lo, hi = rover.wheel_ctrl
+        err = self._hold[rover.name] - self.d.qpos[rover.wheel_qpos]
+        n = len(rover.left)
+        cmd = np.clip(HOLD_GAIN * err, lo, hi)
+        self.d.ctrl[rover.left] = cmd[:n]
+        self.d.ctrl[rover.right] = cmd[n:]
+
+    def wheel_speed(self, rover: Rover) -> float:
+        """Largest wheel speed (rad/s)."""
+        return float(np.max(np.abs(self.d.sensordata[np.r_[rover.left_vel, rover.right_vel]])))
+
+    def step(self, n: int = 1) -> None:
+        """Step the physics ``n`` times with the current commands; update every odometry."""
+        for _ in range(n):
+            for name, r in self.rovers.items():
+                self.d.ctrl[r.arm] = self.arm_targets[name]
+            mujoco.mj_step(self.m, self.d)
+            for name, r in self.rovers.items():
+                self.odometry[name].update(r, self.d, self.dt)
+
+    def settle(self, seconds: float = 1.0) -> None:
+        """Stand still (wheels held, arm at its targets) for ``seconds``; odometry restarts."""
+        for _ in range(int(round(seconds / self.dt))):
+            for r in self.rovers.values():
+                self.brake(r)
+            self.step()
+        self.reset_odometry()
+
+    def warnings(self) -> dict[str, int]:
+        return {
+            mujoco.mjtWarning(i).name: int(w.number)
+            for i, w in enumerate(self.d.warning)
+            if w.number
+        }
+
+    def run(
+        self,
+        tasks: Mapping[str, Task],
+        arm: Mapping[str, ArmWave] | None = None,
+        timeout: float = 120.0,
+        on_step: Callable[[RoverSim], None] | None = None,
+    ) -> dict[str, TaskReport]:
+        """Run one task per rover at the same time until all are done; return a report per
+        task, taken when that task ended. Rovers without a task, and rovers whose task has
+        ended, brake; an arm motion stops (back to the home targets) with its rover's task.
+        ``on_step`` is called after every physics step."""
+        arm = dict(arm or {})
+        t0 = self.d.time
+        for name, task in tasks.items():
+            task.start(self, self.rover(name))
+        track = {n: _Track(self, self.rovers[n]) for n in tasks}
+        out: dict[str, TaskReport] = {}
+        while len(out) < len(tasks):
+            if self.d.time - t0 > timeout:
+                late = ", ".join(n for n in tasks if n not in out)
+                raise RoverError(f"{late}: not done after {timeout:g} s")
+            for name, r in self.rovers.items():
+                current = tasks.get(name)
+                if current is None or name in out:
+                    self.brake(r)
+                    continue
+                self.drive(r, *current.command(self, r))
+                if name in arm:
+                    self.arm_targets[name] = arm[name].targets(self.home[name], self.d.time - t0)
+            self.step()
+            for name, task in tasks.items():
+                if name in out:
+                    continue
+                track[name].update(self)
+                if task.done:
+                    out[name] = track[name].report(self, task, self.d.time - t0)
+                    self.arm_targets[name] = self.home[name].copy()
+            if on_step is not None:
+                on_step(self)
+        return out
+
+    def imu_up(self, rover: Rover) -> tuple[float, float]:
+        """(magnitude, vertical component in the world) of the accelerometer reading, m/s^2."""
+        a = self.d.sensordata[rover.accel : rover.accel + 3]
+        q = self.d.sensordata[rover.orientation : rover.orientation + 4]
+        world = _rotation(q) @ a
+        return float(np.linalg.norm(a)), float(world[2])
