@@ -24,6 +24,14 @@ def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return cache
 
 
+@pytest.fixture(scope="session")
+def gl_context() -> None:
+    """Skips the test only where no offscreen OpenGL context can be made."""
+    reason = headless.gl_context_error()
+    if reason is not None:
+        pytest.skip(f"no offscreen OpenGL context: {reason}")
+
+
 @pytest.fixture
 def data_dir() -> Path:
     return DATA

@@ -11,7 +11,6 @@ IMU and a 2D lidar (Gazebo sensor blocks).
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -207,17 +206,8 @@ def _render(m, d, camera: str, depth: bool) -> np.ndarray:
         return r.render()
 
 
-@pytest.fixture(scope="module")
-def gl_ok() -> None:
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    try:
-        mujoco.GLContext(8, 8).free()
-    except Exception as exc:  # no OpenGL at all on this machine
-        pytest.skip(f"no headless OpenGL: {exc}")
-
-
 def test_camera_renders_rgb_and_depth_and_a_known_object_lands_where_intrinsics_predict(
-    converted, gl_ok
+    converted, gl_context
 ):
     m0, d0 = _model(converted)
     frame = m0.site("camera_optical_frame").id

@@ -511,16 +511,8 @@ def test_cameras_are_640x480_with_58_deg_vertical_fov_and_look_where_mounted(mod
     np.testing.assert_allclose(lift, [math.cos(math.radians(30)), 0, -0.5], atol=1e-9)
 
 
-@pytest.fixture(scope="module")
-def gl_ok() -> None:
-    try:
-        mujoco.GLContext(8, 8).free()
-    except Exception as exc:  # no OpenGL at all on this machine
-        pytest.skip(f"no headless OpenGL: {exc}")
-
-
 @pytest.mark.parametrize("camera", ["wrist_camera_optical_frame", "lift_camera_optical_frame"])
-def test_cameras_render_rgb_and_depth_headlessly(converted, gl_ok, camera):
+def test_cameras_render_rgb_and_depth_headlessly(converted, gl_context, camera):
     m = mujoco.MjModel.from_xml_path(str(converted.with_name("scene.xml")))
     d = _home(m)
     with mujoco.Renderer(m, 480, 640) as r:

@@ -1,3 +1,0 @@
-from urdf2mjcf import headless
-
-headless.configure()  # before mujoco is imported by the tests
