@@ -7,12 +7,12 @@ drives the robot only through its actuators. One module per concern:
 
 ``load``        scene + manifest -> :class:`~urdf2mjcf.runner.load.Facility`
 ``control``     stepping, smooth joint trajectories, the gripper, settle checks
-``ik``          damped least squares on the site Jacobian, on a copy of the data
+``ik``          mink differential IK of the grasp site over the robot's joints, on a copy
 ``hinge``       an arc of tool poses around a hinge joint of the loaded model
 ``perception``  wrist camera RGB-D, red mask, PCA, back-projection -> grasp pose
 ``judge``       intended vs unintended contacts, and the success test
 ``demo``        the waypoints file and the steps of the demo
 ``trials``      seeded trials in parallel processes
 ``cli``         ``facility-demo``
-``rover``       MIRA3D rovers: wheel velocity driving, odometry vs true pose, ``rover-drive``
+``rover``       MIRA3D rovers (a package: roles, odometry, tasks, sim, report, ``rover-drive``)
 """
