@@ -55,6 +55,7 @@ from typing import Any
 
 import yaml
 
+from . import schema
 from .errors import InputError
 
 ACTUATOR_TYPES = ("position", "velocity", "motor", "none")
@@ -129,7 +130,7 @@ def load(path: Path) -> ActuatorFile:
 def parse(text: str, path: Path) -> ActuatorFile:
     """Validate the YAML ``text`` of the actuator file ``path``."""
     try:
-        data = yaml.safe_load(text)
+        data, lines = schema.parse(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
@@ -137,7 +138,7 @@ def parse(text: str, path: Path) -> ActuatorFile:
         raise InputError(f"not valid YAML{where}: {problem}", file=path) from None
     if data is None:
         return ActuatorFile(path)
-    r = _Reader(path)
+    r = _Reader(path, lines)
     top = r.mapping(data, "the document")
     r.only(top, _SECTIONS, "the document")
     defaults = r.mapping(top.get("defaults", {}), "defaults")
@@ -146,10 +147,9 @@ def parse(text: str, path: Path) -> ActuatorFile:
     classes: dict[str, ActuatorSpec] = {}
     for name, body in r.mapping(top.get("classes", {}), "classes").items():
         if name in RESERVED_CLASSES:
-            raise InputError(
+            raise r.fail(
                 f"class name {name!r} is reserved (used by the MJCF defaults); choose another",
-                file=path,
-                element=f"classes: {name}",
+                f"classes: {name}",
             )
         classes[str(name)] = r.spec(body, f"classes: {name}", allow_class=False)
         classes[str(name)] = dataclasses.replace(classes[str(name)], actuator_class=str(name))
@@ -159,10 +159,9 @@ def parse(text: str, path: Path) -> ActuatorFile:
         if spec.actuator_class is not None:
             if spec.actuator_class not in classes:
                 known = ", ".join(sorted(classes)) or "none defined"
-                raise InputError(
+                raise r.fail(
                     f"unknown class {spec.actuator_class!r} (classes: {known})",
-                    file=path,
-                    element=f"joints: {pattern}: class",
+                    f"joints: {pattern}: class",
                 )
             spec = spec.over(classes[spec.actuator_class])
         joints.append((str(pattern), spec))
@@ -171,13 +170,15 @@ def parse(text: str, path: Path) -> ActuatorFile:
 
 
 class _Reader:
-    """Validation helpers that name the file and the key in every error."""
+    """Validation helpers that name the file, the key and its line in every error
+    (:class:`urdf2mjcf.schema.Source`, as for recipes and waypoints files)."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, lines: dict[schema.Key, int] | None = None):
         self.path = path
+        self.source = schema.Source(path, lines or {})
 
     def fail(self, message: str, where: str) -> InputError:
-        return InputError(message, file=self.path, element=where)
+        return self.source.fail(where, message)  # type: ignore[return-value]
 
     def mapping(self, value: Any, where: str) -> dict:
         if value is None:

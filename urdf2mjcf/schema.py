@@ -4,7 +4,7 @@ where the key is in the file, its line.
 
 :func:`load` reads a file with PyYAML's safe loader and keeps the line of every
 key and list item; a :class:`Source` turns a dotted key (``placements.trainer.yaw``,
-``waypoints.3.pose``) into ``file: key (line N): message``. A key that is not in
+``steps[3].pose``) into ``file: key: message (line N)``. A key that is not in
 the file (a missing one, or one a ``--set`` changed) gets the line of the nearest
 enclosing key that is, unless a ``--set`` changed it: then no line, since the file
 does not hold the value that is wrong.
@@ -13,6 +13,7 @@ does not hold the value that is wrong.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +39,17 @@ def _walk(node: yaml.Node | None, path: Key, lines: dict[Key, int]) -> None:
             _walk(item, key, lines)
 
 
+def split_key(key: str) -> Key:
+    """A key as our errors spell it, as a path: ``placements.trainer.yaw``,
+    ``steps[3] 'grasp'.kind`` (a list index and the item's label) or
+    ``joints: finger_.*: class`` (a mapping path whose names may hold dots)."""
+    if ": " in key:
+        return tuple(key.split(": "))
+    key = re.sub(r" '[^']*'", "", key)
+    key = re.sub(r"\[(\d+)\]", r".\1", key)
+    return tuple(part for part in key.split(".") if part)
+
+
 @dataclass
 class Source:
     """A file read by :func:`load`: its path and the line of each key in it."""
@@ -49,7 +61,8 @@ class Source:
     error: type[ConversionError] = InputError
 
     def line(self, key: str) -> int | None:
-        path = tuple(key.split("."))
+        """The line of ``key`` (or of the nearest enclosing key in the file)."""
+        path = split_key(key)
         if any(path[:n] in self.overridden for n in range(1, len(path) + 1)):
             return None
         for n in range(len(path), 0, -1):
@@ -58,10 +71,11 @@ class Source:
         return None
 
     def fail(self, key: str, message: str) -> ConversionError:
-        """The error for ``key``: ``file: key (line N): message``."""
+        """The error for ``key``: ``file: key: message (line N)`` (the line last, so that
+        the error's file and element stay a path and a key)."""
         line = self.line(key) if key else None
-        element = f"{key} (line {line})" if line else key or None
-        return self.error(message, file=self.file or "input", element=element)
+        text = f"{message} (line {line})" if line else message
+        return self.error(text, file=self.file or "input", element=key or None)
 
     def number(self, value: Any, key: str) -> float:
         """A finite float, or an error naming the file and the key."""

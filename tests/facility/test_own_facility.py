@@ -171,19 +171,19 @@ def test_own_facility_flag_leaves_a_component_out(lab, tmp_path):
         (
             RECIPE.replace("  crate: {xyz", "  boat: {xyz"),
             TABLE,
-            ("my_lab.yaml", "placements.boat (line 7)", "unknown component", "crate, shelf"),
+            ("my_lab.yaml", "placements.boat: unknown component", "(line 7)", "unknown component", "crate, shelf"),
         ),
         # a bad entry in the component table: that file, its key and line
         (
             RECIPE,
             TABLE.replace("  free: true", "  free: maybe"),
-            ("my_components.yaml", "crate.free (line 11)", "true or false"),
+            ("my_components.yaml", "crate.free: ", "(line 11)", "true or false"),
         ),
         # jitter of a component that does not exist
         (
             RECIPE.replace("  shelf: false", "  shelve: false"),
             TABLE,
-            ("my_lab.yaml", "jitter.shelve (line 11)", "unknown key", "default, shelf, crate"),
+            ("my_lab.yaml", "jitter.shelve: unknown key", "(line 11)", "unknown key", "default, shelf, crate"),
         ),
     ],
     ids=["unknown_placement", "bad_table_entry", "unknown_jitter_component"],

@@ -16,19 +16,20 @@ from typing import Any
 import mujoco
 
 from ..errors import FacilityError
-from ..facility.recipe import read_yaml
+from ..schema import Source, load
 
 Check = Callable[[Any, str, "Waypoints"], None]
 
 
 class Waypoints:
-    """Where errors point: the file."""
+    """Where errors point: the file and, for a file read here, the key's line."""
 
-    def __init__(self, path: Path | None):
+    def __init__(self, path: Path | None, source: Source | None = None):
         self.path = path
+        self.source = source or Source(path or "waypoints", error=FacilityError)
 
     def fail(self, where: str, message: str) -> FacilityError:
-        return FacilityError(message, file=self.path or "waypoints", element=where)
+        return self.source.fail(where, message)  # type: ignore[return-value]
 
 
 def _number(value: Any, where: str, w: Waypoints, *, low: float | None = None) -> float:
@@ -192,9 +193,10 @@ def _step_at(i: int, step: Any) -> str:
     return f"steps[{i}]" + (f" '{label}'" if isinstance(label, str) else "")
 
 
-def check_shape(spec: Any, path: Path | None) -> dict:
-    """``spec`` (a waypoints file's data) checked for keys, kinds and types."""
-    w = Waypoints(path)
+def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> dict:
+    """``spec`` (a waypoints file's data) checked for keys, kinds and types; ``source``:
+    the file's key lines (:func:`urdf2mjcf.schema.load`), for errors that name them."""
+    w = Waypoints(path, source)
     if not isinstance(spec, Mapping):
         raise w.fail("waypoints", "a waypoints file is a mapping with steps, bag and stowage")
     _mapping(spec, "waypoints", w, TOP, ("bag", "stowage", "steps"))
@@ -224,7 +226,9 @@ def check_shape(spec: Any, path: Path | None) -> dict:
 
 def read_waypoints(path: str | Path) -> dict:
     """A waypoints file, its shape checked (:func:`check_shape`)."""
-    return check_shape(read_yaml(Path(path), "waypoints file"), Path(path))
+    data, source = load(Path(path), "waypoints file")
+    source.error = FacilityError
+    return check_shape(data, Path(path), source)
 
 
 def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
