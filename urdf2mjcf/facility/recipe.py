@@ -331,7 +331,7 @@ def parse_recipe(
         actuator_config=actuator_config,
         gravcomp=gravcomp,
         description=description,
-        rocks=parse_rocks(data.get("rocks"), path),
+        rocks=parse_rocks(data.get("rocks"), src),
     )
 
 

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..schema import Source
 from .values import fail, number
 
 ROCK_KEYS = ("count", "seed", "area", "size", "clearance", "keepout", "variants", "z")
@@ -61,22 +62,22 @@ class Rock:
     size: float
 
 
-def _fail(path: Path | None, key: str, message: str) -> InputError:
+def _fail(path: Path | Source | None, key: str, message: str) -> InputError:
     return fail(path, f"rocks.{key}", message)
 
 
-def _numbers(value: Any, n: int, path: Path | None, key: str) -> list[float]:
+def _numbers(value: Any, n: int, path: Path | Source | None, key: str) -> list[float]:
     if not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, key, f"needs {n} numbers")
     return [number(v, path, f"rocks.{key}") for v in value]
 
 
-def parse_rocks(data: Any, path: Path | None) -> dict[str, Any]:
+def parse_rocks(data: Any, path: Path | Source | None) -> dict[str, Any]:
     """A recipe's ``rocks:`` section, checked and completed with the defaults."""
     if data is None:
         return {}
     if not isinstance(data, Mapping):
-        raise InputError("a mapping of rock settings", file=path or "recipe", element="rocks")
+        raise fail(path, "rocks", "a mapping of rock settings")
     unknown = set(data) - set(ROCK_KEYS)
     if unknown:
         raise _fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(ROCK_KEYS)}")

@@ -7,13 +7,17 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..schema import Source
 
 
-def fail(path: Path | None, key: str, message: str) -> InputError:
+def fail(path: Path | Source | None, key: str, message: str) -> InputError:
+    """The error naming the file and the key (and its line, given the file's Source)."""
+    if isinstance(path, Source):
+        return path.fail(key, message)  # type: ignore[return-value]
     return InputError(message, file=path or "recipe", element=key)
 
 
-def number(value: Any, path: Path | None, key: str) -> float:
+def number(value: Any, path: Path | Source | None, key: str) -> float:
     """A finite float, or an InputError naming the file and the key."""
     try:
         x = float(value)
