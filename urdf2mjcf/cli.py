@@ -12,6 +12,9 @@ import click
 
 from . import headless
 from .errors import ConversionError
+from .passes.collision import CollisionConfig
+from .passes.inertia import InertiaConfig
+from .passes.meshes import MeshConfig
 
 
 def _configure_logging(verbose: int, quiet: bool) -> None:
@@ -96,7 +99,7 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option(
     "--density",
     type=float,
-    default=1000.0,
+    default=InertiaConfig.density,
     show_default=True,
     help="kg/m^3 for links with geometry but no inertial.",
 )
@@ -149,7 +152,7 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option(
     "--decompose-timeout",
     type=click.FloatRange(min=0),
-    default=120.0,
+    default=CollisionConfig.timeout,
     show_default=True,
     help="Seconds one mesh's convex decomposition may take (0 = no limit); "
     "past it the mesh gets its convex hull, with a warning.",
@@ -157,7 +160,7 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option(
     "--max-faces",
     type=int,
-    default=200_000,
+    default=MeshConfig.max_faces,
     show_default=True,
     help="Decimate meshes above this face count.",
 )
