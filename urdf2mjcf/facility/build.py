@@ -13,7 +13,6 @@ file we wrote: a rebuild replaces those and keeps anything else in the folder
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -167,5 +166,3 @@ def _roles(
     return out
 
 
-def yaw_quat(yaw: float) -> tuple[float, float, float, float]:
-    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
