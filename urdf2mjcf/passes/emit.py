@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from lxml import etree
 
+from ..errors import ValidationError
 from ..fmt import fmt_float, fmt_vec
 from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
 from ..transforms import (
@@ -29,6 +30,10 @@ from ..transforms import (
 log = logging.getLogger(__name__)
 
 WORLD = "world"
+MAX_BODY_DEPTH = 496
+"""Nested bodies MuJoCo reads from one MJCF file: its XML reader (tinyxml2) stops at
+500 nested elements (mujoco > worldbody > bodies > geom). Its compiler stops at 1023
+(measured with MuJoCo 4.0)."""
 _SCALAR = ("revolute", "continuous", "prismatic")
 """Joint types with one qpos number: the only ones a joint equality can couple."""
 
@@ -143,19 +148,26 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
             body.sites.insert(0, Site(link, link))  # frames stay findable: tool0, optical frames
         body.cameras = list(cameras.get(link, ()))
         body.gravcomp = model.gravcomp.get(link, 0.0)
+        return body
+
+    if robot.root is None:
+        return world
+    # Children before parents (reverse pre-order) without recursion, so a chain of any
+    # depth works; each child is complete, its own fixed children fused, when it is
+    # attached or fused, as a depth-first walk would do it.
+    order = robot.topological_links()
+    bodies = {link: make(link) for link in order}
+    for link in reversed(order):
+        body = bodies[link]
         for joint in robot.child_joints.get(link, ()):
-            child = make(joint.child)
+            child = bodies[joint.child]
             child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
             child.joint = joint if joint.type != "fixed" else None
             if cfg.fuse_fixed and joint.type == "fixed" and joint.child not in keep:
                 _fuse(body, child)
             else:
                 body.children.append(child)
-        return body
-
-    if robot.root is None:
-        return world
-    root = make(robot.root)
+    root = bodies[robot.root]
     if robot.root == WORLD:
         world.geoms, world.children = root.geoms, root.children
         world.sites, world.cameras = root.sites, root.cameras
@@ -223,7 +235,12 @@ def _limits(joint: Joint, robot_source: Path, notes: list[Note]) -> tuple[float,
 
 
 def _joint_elements(
-    body_el: etree._Element, body: _Body, model: Model, at_world: bool, notes: list[Note]
+    body_el: etree._Element,
+    body: _Body,
+    model: Model,
+    at_world: bool,
+    notes: list[Note],
+    actuators: dict[str, Actuator],
 ) -> list[tuple[str, str, float]]:
     """Write the joint(s) of ``body``; returns (name, kind, home value) per qpos block."""
     joint = body.joint
@@ -249,7 +266,7 @@ def _joint_elements(
         if joint.type == "prismatic":
             el.set("type", "slide")
         _set(el, axis=axis, range=rng, **common)
-        actuator = next((a for a in model.actuators if a.joint == joint.name), None)
+        actuator = actuators.get(joint.name)
         effort = joint.limit.effort if joint.limit is not None else None
         if actuator is not None and actuator.forcerange is not None:
             _set(el, actuatorfrcrange=actuator.forcerange)  # a configured limit beats the URDF's
@@ -342,20 +359,27 @@ def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
         _set(el, fullinertia=inertial.fullinertia)
 
 
-def _body_element(
-    parent: etree._Element, body: _Body, model: Model, at_world: bool, qpos: list, notes: list[Note]
+def _body_elements(
+    worldbody: etree._Element, bodies: list[_Body], model: Model, qpos: list, notes: list[Note]
 ) -> None:
-    el = etree.SubElement(parent, "body")
-    _set(el, name=body.name, **_pose_attrs(body.pos, body.quat), gravcomp=body.gravcomp or None)
-    if body.inertial is not None:
-        _inertial_element(el, body.inertial)
-    qpos.extend(
-        (name, kind, home, body)
-        for name, kind, home in _joint_elements(el, body, model, at_world, notes)
-    )
-    _body_contents(el, body)
-    for child in body.children:
-        _body_element(el, child, model, False, qpos, notes)
+    """Write the world's child ``bodies`` and their subtrees in document order (an
+    explicit stack, so any depth)."""
+    actuators: dict[str, Actuator] = {}
+    for a in model.actuators:
+        actuators.setdefault(a.joint, a)  # the first actuator of a joint, looked up per joint
+    stack = [(worldbody, body, True) for body in reversed(bodies)]
+    while stack:
+        parent, body, at_world = stack.pop()
+        el = etree.SubElement(parent, "body")
+        _set(el, name=body.name, **_pose_attrs(body.pos, body.quat), gravcomp=body.gravcomp or None)
+        if body.inertial is not None:
+            _inertial_element(el, body.inertial)
+        qpos.extend(
+            (name, kind, home, body)
+            for name, kind, home in _joint_elements(el, body, model, at_world, notes, actuators)
+        )
+        _body_contents(el, body)
+        stack.extend((el, child, False) for child in reversed(body.children))
 
 
 _ACTUATOR_ATTRS = {
@@ -441,10 +465,35 @@ def _home_qpos(entries: list, model: Model) -> tuple[float, ...]:
     return tuple(out)
 
 
+def _check_depth(world: _Body, model: Model, cfg: EmitConfig) -> None:
+    """Fail with the limit named when MuJoCo could not read the body tree."""
+    first, deepest = None, 0
+    stack = [(body, 1) for body in reversed(world.children)]
+    while stack:
+        body, depth = stack.pop()
+        deepest = max(deepest, depth)
+        if depth > MAX_BODY_DEPTH and first is None:
+            first = body.name
+        stack.extend((child, depth + 1) for child in reversed(body.children))
+    if first is None:
+        return
+    hint = ""
+    if not cfg.fuse_fixed and any(j.type == "fixed" for j in model.robot.joints):
+        hint = "; --fuse-fixed merges links attached by fixed joints into one body"
+    raise ValidationError(
+        f"is body {MAX_BODY_DEPTH + 1} of a kinematic tree {deepest} bodies deep; MuJoCo "
+        f"reads at most {MAX_BODY_DEPTH} nested bodies from an MJCF file (its XML reader "
+        f"stops at 500 nested elements, its compiler at 1023 nested bodies){hint}",
+        file=model.robot.source,
+        element=f"link '{first}'",
+    )
+
+
 def run(model: Model, cfg: EmitConfig) -> EmitResult:
     robot = model.robot
     notes: list[Note] = []
     tree = _build_tree(model, cfg)
+    _check_depth(tree, model, cfg)
     if (
         cfg.floating_base
         and robot.root not in (None, WORLD)
@@ -508,8 +557,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     worldbody = etree.SubElement(mj, "worldbody")
     _body_contents(worldbody, tree)
     entries: list = []
-    for child in tree.children:
-        _body_element(worldbody, child, model, True, entries, notes)
+    _body_elements(worldbody, tree.children, model, entries, notes)
 
     # MuJoCo filters parent-child contacts except with the world body.
     if any(g.role == "collision" for g in tree.geoms):

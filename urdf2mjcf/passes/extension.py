@@ -173,7 +173,8 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
     extensions = [e for e in model.robot.extensions if e.tag == "mujoco"]
     if not cfg.enabled or not extensions:
         return result
-    root = etree.fromstring(result.xml, etree.XMLParser(remove_blank_text=True))
+    # huge_tree: libxml2 otherwise stops at 256 nested elements, a chain of ~250 links
+    root = etree.fromstring(result.xml, etree.XMLParser(remove_blank_text=True, huge_tree=True))
     source = model.robot.source
     ctx = _Context(
         root=root,
@@ -283,13 +284,20 @@ def _merge_attrs(target: etree._Element, attrs: Iterable[tuple[str, str]]) -> No
 
 def _merge_tree(ctx: _Context, target: etree._Element, src: etree._Element, origin: str) -> None:
     """Attributes merged, children merged into the same-tag child (created if missing)."""
-    _merge_attrs(target, src.items())
-    ctx.origin[target] = origin
-    for child in _elements(src):
-        existing = target.find(child.tag)
-        if existing is None:
-            existing = etree.SubElement(target, child.tag)
-        _merge_tree(ctx, existing, child, origin)
+    # Depth first with a stack, not recursion; the same-tag child is looked up when its
+    # turn comes, so a repeated tag merges into the one its first sibling created.
+    stack: list[tuple[etree._Element, etree._Element | None, etree._Element]] = [
+        (target, target, src)
+    ]
+    while stack:
+        parent, found, part = stack.pop()
+        if found is None:
+            found = parent.find(part.tag)
+            if found is None:
+                found = etree.SubElement(parent, part.tag)
+        _merge_attrs(found, part.items())
+        ctx.origin[found] = origin
+        stack.extend((found, None, child) for child in reversed(_elements(part)))
 
 
 def _merge_singleton(ctx: _Context, src: etree._Element) -> None:
@@ -337,7 +345,11 @@ def _merge_classes(
     ctx: _Context, top: etree._Element, target: etree._Element, src: etree._Element
 ) -> None:
     """Merge the default tree ``src`` into ``target``; classes are found anywhere under ``top``."""
-    for child in _elements(src):
+    # Depth first with a stack, not recursion: each element meets the tree as it
+    # stands after the elements before it in document order.
+    stack = [(target, child) for child in reversed(_elements(src))]
+    while stack:
+        target, child = stack.pop()
         if child.tag == "default":
             cls = child.get("class")
             origin = f"mujoco default class '{cls}'"
@@ -349,7 +361,7 @@ def _merge_classes(
                 existing.set("class", cls)
                 ctx.origin[existing] = origin
             _merge_attrs(existing, ((k, v) for k, v in child.items() if k != "class"))
-            _merge_classes(ctx, top, existing, child)
+            stack.extend((existing, grandchild) for grandchild in reversed(_elements(child)))
             continue
         origin = f"mujoco default {child.tag}"
         if target is not top:
@@ -593,7 +605,7 @@ def _blame(ctx: _Context, xml: bytes, error: str) -> None:
     element = None
     line = re.search(r"\bline (\d+)", error)
     if line:
-        parsed = etree.fromstring(xml)
+        parsed = etree.fromstring(xml, etree.XMLParser(huge_tree=True))
         for mine, theirs in zip(ctx.root.iter(), parsed.iter(), strict=True):
             if theirs.sourceline == int(line.group(1)):
                 element = mine

@@ -358,17 +358,18 @@ def _carries_mass(robot: Robot, name: str, inertials: Mapping[str, BodyInertial 
     """MuJoCo's CheckBodyMassInertia: the body or one welded below it has mass
     and all principal moments >= mjMINVAL (a point mass on a welded tool frame
     is accepted by MuJoCo and kept, but does not carry a joint)."""
-    inertial = inertials.get(name)
-    if (
-        inertial is not None
-        and inertial.mass >= MJ_MINVAL
-        and np.linalg.eigvalsh(_symmetric(inertial.fullinertia)).min() >= MJ_MINVAL
-    ):
-        return True
-    return any(
-        j.type == "fixed" and _carries_mass(robot, j.child, inertials)
-        for j in robot.child_joints.get(name, ())
-    )
+    stack = [name]  # not recursion: a welded chain may be any length
+    while stack:
+        link = stack.pop()
+        inertial = inertials.get(link)
+        if (
+            inertial is not None
+            and inertial.mass >= MJ_MINVAL
+            and np.linalg.eigvalsh(_symmetric(inertial.fullinertia)).min() >= MJ_MINVAL
+        ):
+            return True
+        stack.extend(j.child for j in robot.child_joints.get(link, ()) if j.type == "fixed")
+    return False
 
 
 def _point_mass_repaired(name: str, inertial: BodyInertial, notes: list[Note]) -> BodyInertial:

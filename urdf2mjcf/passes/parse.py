@@ -340,11 +340,19 @@ def _moving_links(root: etree._Element, cfg: ParseConfig) -> set[str]:
         if p is not None and c is not None and p.get("link") and c.get("link"):
             parent.setdefault(c.get("link"), (p.get("link"), el.get("type") != "fixed"))
     out = set()
+    # (moves, where the walk stopped) per link walked through: every link on a walk
+    # up shares its answer, so a long welded chain is walked once, not once per link.
+    known: dict[str, tuple[bool, str]] = {}
     for el in root.findall("link"):
-        link, seen, moves = el.get("name"), set(), False
-        while link in parent and link not in seen and not moves:
+        link, seen, moves, path = el.get("name"), set(), False, []
+        while link in parent and link not in seen and not moves and link not in known:
             seen.add(link)
+            path.append(link)
             link, moves = parent[link]
+        if not moves and link in known:
+            moves, link = known[link]
+        if moves or link not in seen:  # a cycle is not remembered: parse rejects it
+            known.update(dict.fromkeys(path, (moves, link)))
         if moves or (cfg.free_root and link != "world"):  # emit frees a root not named world
             out.add(el.get("name"))
     return out
