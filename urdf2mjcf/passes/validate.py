@@ -63,10 +63,13 @@ def run(
             if m.nkey:
                 mujoco.mj_resetDataKeyframe(m, d, 0)
             steps = int(round(cfg.duration / m.opt.timestep))
-            for _ in range(steps):
-                mujoco.mj_step(m, d)
-                if warnings:
-                    break
+            try:
+                for _ in range(steps):
+                    mujoco.mj_step(m, d)
+                    if warnings:
+                        break
+            except mujoco.FatalError as exc:
+                raise _fatal(exc, m, cfg, shown) from None
         finally:
             mujoco.set_mju_user_warning(previous)
     raised = [
@@ -81,3 +84,20 @@ def run(
         )
     log.debug("validated %s: nbody=%d nq=%d", shown, m.nbody, m.nq)
     return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps)
+
+
+def _fatal(exc: Exception, m, cfg: ValidateConfig, shown: Path) -> ValidationError:
+    """MuJoCo's fatal error while stepping, on one line; for its arena (a long robot
+    lying on the floor has thousands of contacts) the limit and how to raise it."""
+    message = " ".join(str(exc).split())
+    if "mj_stackAlloc" in message or "arena" in message:
+        arena = int(m.narena)
+        message = (
+            f"MuJoCo ran out of its {arena / 2**20:.0f} MiB arena "
+            f"(contacts and constraints) while simulating {cfg.duration:g} s: {message}; "
+            f'give it more with <mujoco><size memory="{4 * arena // 2**20}M"/></mujoco> '
+            "in the URDF"
+        )
+    else:
+        message = f"MuJoCo stopped while simulating {cfg.duration:g} s: {message}"
+    return ValidationError(message, file=shown)
