@@ -8,20 +8,29 @@ from pathlib import Path
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
 
 
-def write_section(name: str, header: list[str], row: list[object], intro: str = "") -> None:
+def write_section(
+    name: str,
+    header: list[str],
+    row: list[object] | None = None,
+    intro: str = "",
+    rows: list[list[object]] | None = None,
+    docs: Path = DOCS,
+) -> None:
     """Replace the ``<!-- NAME:begin -->`` ... ``<!-- NAME:end -->`` block (added
-    at the end, after ``intro``, when missing) with a one-row table."""
+    at the end, after ``intro``, when missing) with a table of ``row`` (one row)
+    or ``rows``, in ``docs`` (docs/benchmarks.md by default)."""
     begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    body = ([row] if row is not None else []) + list(rows or [])
     table = "\n".join(
         [
             begin,
             "| " + " | ".join(header) + " |",
             "|" + "---|" * len(header),
-            "| " + " | ".join(str(v) for v in row) + " |",
+            *("| " + " | ".join(str(v) for v in r) + " |" for r in body),
             end,
         ]
     )
-    text = DOCS.read_text() if DOCS.exists() else "# Benchmarks\n"
+    text = docs.read_text() if docs.exists() else "# Benchmarks\n"
     if begin not in text:
         text = (
             text.rstrip("\n")
@@ -29,6 +38,6 @@ def write_section(name: str, header: list[str], row: list[object], intro: str = 
             + (intro.strip() + "\n\n" if intro else "")
             + f"{begin}\n{end}\n"
         )
-    DOCS.write_text(
+    docs.write_text(
         re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _: table, text, flags=re.S)
     )
