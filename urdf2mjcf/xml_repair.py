@@ -1,8 +1,10 @@
 """Repairs of URDF bytes that urdfdom (TinyXML2) reads but libxml2 and expat reject.
 
 Found in real descriptions: an XML declaration with a version other than
-1.x, whitespace or a comment before the declaration, and content after the
-root element's end tag (a second ``</robot>``, stray text). Each repair is
+1.x, whitespace or a comment before the declaration, content after the
+root element's end tag (a second ``</robot>``, stray text), and a namespace
+prefix used without a declaration (``drake:acceleration`` in Drake's
+exports; TinyXML2 knows no namespaces). Each repair is
 reported as ``(element, message)``; the caller warns or, with ``--strict``,
 fails. A document libxml2 already accepts comes back unchanged, and line
 numbers stay those of the file.
@@ -96,6 +98,61 @@ def _trailing(data: bytes) -> tuple[bytes, str | None]:
     return data[:end] + b"\n", f"content after the root element ('{shown}') ignored"
 
 
+UNDECLARED_NAMESPACE = "urn:undeclared:{prefix}"
+"""The URI an undeclared prefix is bound to: foreign to every pass, so ignored."""
+_KNOWN_NAMESPACES = {"xacro": "http://www.ros.org/wiki/xacro"}
+"""Prefixes whose meaning is not in doubt get their real namespace."""
+
+
+def _undeclared(data: bytes) -> tuple[list[str], int | None]:
+    """Prefixes used outside any declaration of theirs, first use first, and the
+    byte offset just past the root element's name (None when expat cannot tell)."""
+    parser = xml.parsers.expat.ParserCreate()  # no namespace processing: prefixes stay text
+    scopes: list[set[str]] = []
+    used: dict[str, None] = {}
+    insert: int | None = None
+
+    def start(name: str, attrs: dict[str, str]) -> None:
+        nonlocal insert
+        if insert is None:
+            at = parser.CurrentByteIndex + 1
+            raw = name.encode()
+            insert = at + len(raw) if data[at : at + len(raw)] == raw else -1
+        scopes.append({k[len("xmlns:") :] for k in attrs if k.startswith("xmlns:")})
+        for qname in (name, *attrs):
+            prefix, colon, _ = qname.partition(":")
+            if not colon or prefix in ("xml", "xmlns") or prefix in used:
+                continue
+            if not any(prefix in scope for scope in scopes):
+                used[prefix] = None
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = lambda _name: scopes.pop()
+    try:
+        parser.Parse(data, True)
+    except xml.parsers.expat.ExpatError:
+        return [], None
+    return list(used), insert if insert is not None and insert >= 0 else None
+
+
+def _namespaces(data: bytes) -> tuple[bytes, list[str]]:
+    """Declare each undeclared prefix on the root element, on its first line."""
+    prefixes, at = _undeclared(data)
+    if not prefixes or at is None:
+        return data, []
+    decls, messages = b"", []
+    for prefix in prefixes:
+        uri = _KNOWN_NAMESPACES.get(prefix, UNDECLARED_NAMESPACE.format(prefix=prefix))
+        decls += f' xmlns:{prefix}="{uri}"'.encode()
+        what = (
+            "read as xacro's"
+            if prefix in _KNOWN_NAMESPACES
+            else f"declared as '{uri}': its elements and attributes are ignored"
+        )
+        messages.append(f"namespace prefix '{prefix}' is used but never declared; {what}")
+    return data[:at] + decls + data[at:], messages
+
+
 def repair(data: bytes) -> tuple[bytes, list[tuple[str, str]]]:
     """``data`` with the repairs it needs, and ``(element, message)`` for each one."""
     if _well_formed(data):
@@ -109,4 +166,6 @@ def repair(data: bytes) -> tuple[bytes, list[tuple[str, str]]]:
         data, message = step(data)
         if message:
             fixes.append((element, message))
+    data, messages = _namespaces(data)
+    fixes += [("XML namespaces", message) for message in messages]
     return data, fixes

@@ -153,6 +153,30 @@ BYTES = {
 }
 
 
+def with_drake(text: str) -> str:
+    """``drake:`` elements and attributes where Drake's exports put them, undeclared."""
+    proximity = (
+        '<drake:proximity_properties><drake:mu_static value="0.5"/></drake:proximity_properties>'
+    )
+    group = (
+        '<drake:collision_filter_group name="g"><drake:member link="base"/>'
+        "</drake:collision_filter_group>"
+    )
+    return (
+        text.replace("</geometry></collision>", f"</geometry>{proximity}</collision>", 1)
+        .replace('<limit lower="-1"', '<limit drake:acceleration="2.5" lower="-1"')
+        .replace("</robot>", f"{group}\n</robot>")
+    )
+
+
+BYTES |= {
+    "undeclared_prefix": Wild("robot.urdf", with_drake(CLEAN), ["namespace prefix 'drake'"]),
+    "xacro_undeclared_prefix": Wild(
+        "robot.urdf.xacro", with_drake(XACRO_CLEAN), ["namespace prefix 'drake'"]
+    ),
+}
+
+
 @pytest.mark.parametrize("case", sorted(BYTES))
 def test_repaired_bytes_convert_exactly_like_the_clean_file(case, tmp_path):
     wild = BYTES[case]
@@ -165,6 +189,24 @@ def test_repaired_bytes_convert_exactly_like_the_clean_file(case, tmp_path):
     assert out.read_bytes() == clean_out.read_bytes(), "same model, same frames, same bytes"
     m, _ = compile_and_step(out.with_name("scene.xml"))
     assert m.njnt == 1
+
+
+def test_undeclared_prefix_converts_like_the_twin_that_declares_it(tmp_path):
+    """urdfdom ignores namespaces; lxml needs the prefix bound. Bound to a URN no
+    pass knows, the elements are foreign and ignored, exactly as when declared."""
+    wild = Wild("robot.urdf", with_drake(CLEAN), ["namespace prefix 'drake'"])
+    assert "<drake:proximity_properties>" in wild.text and "drake:acceleration" in wild.text
+    _, out, warnings = convert_wild(wild, tmp_path / "wild")
+    assert len(warnings) == 1, warnings
+    twin = tmp_path / "twin" / "robot.urdf"
+    twin.parent.mkdir()
+    declared = '<robot name="wild" xmlns:drake="http://drake.mit.edu">'
+    twin.write_text(wild.text.replace('<robot name="wild">', declared))
+    proc = run_cli(twin, tmp_path / "twin" / "out" / "robot.xml")
+    assert proc.returncode == 0 and not lines(proc.stderr, "warning"), proc.stderr
+    assert out.read_bytes() == (tmp_path / "twin" / "out" / "robot.xml").read_bytes()
+    m, _ = compile_and_step(out.with_name("scene.xml"))
+    assert m.njnt == 1 and (m.geom_bodyid > 0).sum() == 2
 
 
 def test_declaration_repair_keeps_line_numbers_for_later_errors(tmp_path):
