@@ -272,3 +272,98 @@ def test_many_references_scan_the_tree_once(tmp_path, monkeypatch):
             assert r.resolve(f"package://visual/link_{i}.stl").is_file()
     assert calls == [pkg.resolve()]
     assert len(r.notes) == 5  # one per folder actually used
+
+
+# -- a mesh not at the referenced path: the one file of that name nearby ----------
+
+
+def _collision_urdf(path: Path, *uris: str) -> Path:
+    """One link per URI, that mesh its only (collision) geometry, chained by joints."""
+    text = _urdf(path, *uris).read_text()
+    path.write_text(text.replace("<visual>", "<collision>").replace("</visual>", "</collision>"))
+    return path
+
+
+def _errors(proc: subprocess.CompletedProcess) -> list[str]:
+    return [ln for ln in proc.stderr.splitlines() if ln.strip()]
+
+
+def test_relative_mesh_missing_uses_the_one_file_of_that_name(tmp_path):
+    # pybullet's kuka_iiwa/model_for_sdf.urdf: meshes/coarse/link_0.stl, shipped as meshes/link_0.stl
+    robot = tmp_path / "kuka_iiwa"
+    mesh = _mesh(robot / "meshes" / "link_0.stl")
+    trimesh.creation.box((0.1, 0.1, 0.1)).export(robot / "meshes" / "link_0.obj")  # other ext
+    src = _collision_urdf(robot / "model.urdf", "meshes/coarse/link_0.stl")
+    out = tmp_path / "out" / "model.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 1)
+    lines = _warnings(proc, "meshes/coarse/link_0.stl")
+    assert len(lines) == 1 and str(mesh) in lines[0], proc.stderr
+    assert len(_warnings(proc, "")) == 1, proc.stderr
+    strict_out = tmp_path / "strict" / "model.xml"
+    proc = _convert(src, strict_out, "--strict")
+    assert proc.returncode == 2, proc.stderr
+    errors = _errors(proc)
+    assert len(errors) == 1 and errors[0].startswith("error:"), proc.stderr
+    assert "meshes/coarse/link_0.stl" in errors[0] and "--strict" in errors[0]
+    assert not strict_out.parent.exists()
+
+
+def test_package_mesh_missing_uses_the_one_file_of_that_name_in_that_package(tmp_path):
+    # robot_properties_fingers: meshes/stl/trifinger_table_without_border.stl is at meshes/
+    pkg = tmp_path / "share" / "fingers"
+    _package_xml(pkg, "fingers")
+    mesh = _mesh(pkg / "meshes" / "table.stl")
+    uri = "package://fingers/meshes/stl/table.stl"
+    src = _collision_urdf(pkg / "urdf" / "stage.urdf", uri, uri)
+    out = tmp_path / "out" / "stage.xml"
+    proc = _convert(src, out, "--package-path", str(tmp_path / "share"))
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 2)
+    lines = _warnings(proc, uri)
+    assert len(lines) == 1 and str(mesh) in lines[0], proc.stderr  # once, not once per link
+
+
+def test_two_files_of_that_name_are_an_error_naming_both(tmp_path):
+    robot = tmp_path / "robot"
+    a = _mesh(robot / "meshes" / "visual" / "link.stl")
+    b = _mesh(robot / "meshes" / "collision" / "link.stl")
+    src = _collision_urdf(robot / "robot.urdf", "meshes/coarse/link.stl")
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 2, proc.stderr
+    errors = _errors(proc)
+    assert len(errors) == 1 and errors[0].startswith("error:"), proc.stderr
+    assert str(a) in errors[0] and str(b) in errors[0] and "meshes/coarse/link.stl" in errors[0]
+    assert not out.parent.exists()
+
+
+def test_no_file_of_that_name_keeps_the_missing_mesh_error(tmp_path):
+    robot = tmp_path / "robot"
+    _mesh(robot / "meshes" / "Link.stl")  # the name is case-sensitive
+    _mesh(robot / "meshes" / "link.obj")  # and so is the extension
+    src = _collision_urdf(robot / "robot.urdf", "meshes/coarse/link.stl")
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 2, proc.stderr
+    errors = _errors(proc)
+    assert len(errors) == 1 and "not found" in errors[0], proc.stderr
+    assert "meshes/coarse/link.stl" in errors[0]
+
+
+def test_many_missing_references_scan_each_folder_once(tmp_path, monkeypatch):
+    from urdf2mjcf import packages
+
+    robot = tmp_path / "robot"
+    for i in range(3):
+        _mesh(robot / "meshes" / f"link_{i}.stl")
+    calls = []
+    real = packages._index_files
+    monkeypatch.setattr(packages, "_index_files", lambda root: calls.append(root) or real(root))
+    r = PackageResolver(source=robot / "robot.urdf", use_environment=False)
+    for i in range(200):
+        found = r.resolve(f"meshes/coarse/link_{i}.stl")
+        assert found.is_file() == (i < 3)
+    assert calls == [robot.resolve()]
+    assert len(r.notes) == 3

@@ -25,6 +25,17 @@ parse pass turns them into warnings) and is an error when ``strict``:
    that holds the relative path (URIs whose real package prefix was cut off,
    ``package://visual/base_link.dae``).
 
+A file reference that resolves (by any step above, or as a relative path) to
+a path that does not exist gets one more guess, a note like the others:
+
+9. a file of the same name (case-sensitive, same extension) a few levels
+   below the folder the reference resolved into: for a relative path the
+   source's folder, then its own package (nearest ancestor with
+   ``package.xml``); for a ``package://`` URI that package's folder
+   (``meshes/coarse/link_0.stl`` shipped as ``meshes/link_0.stl``). Exactly
+   one such file is used; several are an error naming them; none leaves the
+   path as written, for the mesh pass to report.
+
 A file found by none of these is an error naming the URI.
 """
 
@@ -92,6 +103,35 @@ def _scan(dirs: Sequence[Path]) -> dict[str, Path]:
 
 def _env_dirs(var: str) -> list[Path]:
     return [Path(p) for p in os.environ.get(var, "").split(os.pathsep) if p]
+
+
+def _index_files(root: Path) -> dict[str, list[Path]]:
+    """File name -> files below ``root`` (``root`` itself included), breadth first,
+    sorted within a level, at most ``DEEP_SEARCH_DEPTH`` levels down."""
+    index: dict[str, list[Path]] = {}
+    level, seen = [root], 0
+    for _ in range(DEEP_SEARCH_DEPTH + 1):
+        next_level = []
+        for folder in level:
+            try:
+                entries = sorted(os.scandir(folder), key=lambda e: e.name)
+            except OSError:
+                continue
+            for entry in entries:
+                if entry.name.startswith("."):
+                    continue
+                try:
+                    if entry.is_dir(follow_symlinks=False):
+                        next_level.append(Path(entry.path))
+                        seen += 1
+                    elif entry.is_file():
+                        index.setdefault(entry.name, []).append(Path(entry.path))
+                except OSError:
+                    continue
+            if seen >= DEEP_SEARCH_MAX_DIRS:
+                return index
+        level = next_level
+    return index
 
 
 def _index_tree(root: Path) -> dict[str, list[Path]]:
@@ -186,11 +226,17 @@ class PackageResolver:
                 return ancestor
         return None
 
-    def _guess(self, key: tuple, element: str | None, message: str) -> None:
+    def _guess(
+        self,
+        key: tuple,
+        element: str | None,
+        message: str,
+        fix: str = "pass --package or --package-path",
+    ) -> None:
         """Record a fallback once; with ``strict`` it is an error instead."""
         if self.strict:
             raise PackageNotFoundError(
-                f"{message}; --strict allows no such guess: pass --package or --package-path",
+                f"{message}; --strict allows no such guess: {fix}",
                 file=self.source,
                 element=element,
             )
@@ -267,8 +313,62 @@ class PackageResolver:
         base = base or self.source.resolve().parent
         key = ("uri", uri, base)
         if key not in self._memo:
-            self._memo[key] = self._resolve(uri, element, base)
+            path = self._resolve(uri, element, base)
+            if path.suffix and not path.exists():
+                path = self._same_name(uri, path, element, base)
+            self._memo[key] = path
         return self._memo[key]
+
+    # -- step 9: the same file name elsewhere in the package ----------------
+
+    def _files(self, root: Path) -> dict[str, list[Path]]:
+        """The file index of ``root``, built once per conversion."""
+        key = ("files", root)
+        if key not in self._memo:
+            self._memo[key] = _index_files(root)
+        return self._memo[key]
+
+    def _search_roots(self, uri: str, path: Path, base: Path) -> list[Path]:
+        """Where a missing ``path`` may have been shipped under another folder."""
+        if uri.startswith(("package://", "model://")):
+            rest = unquote(uri.split("://", 1)[1]).lstrip("/")
+            name, _, relative = rest.partition("/")
+            if name in (".", ".."):
+                roots = [base]
+            else:  # the package folder: ``path`` minus its relative part
+                parts = len(Path(relative).parts)
+                roots = [path.parents[parts - 1]] if 0 < parts <= len(path.parents) else []
+        elif Path(uri).is_absolute() or uri.startswith("file:///"):
+            return []  # an absolute path names no folder of ours
+        else:
+            roots = [base]
+        own = self._own_package
+        if own is not None and own not in roots and all(own in r.parents for r in roots):
+            roots.append(own)  # a relative path: the source's package, after its folder
+        return [r for r in roots if r.is_dir()]
+
+    def _same_name(self, uri: str, path: Path, element: str | None, base: Path) -> Path:
+        """Step 9: the one file called ``path.name`` below where ``uri`` points, else ``path``."""
+        for root in self._search_roots(uri, path, base):
+            found = self._files(root).get(path.name, [])
+            if len(found) > 1:
+                shown = ", ".join(str(f) for f in found)
+                raise PackageNotFoundError(
+                    f"'{uri}' does not exist ({path}); several files of that name below "
+                    f"{root}: {shown}; write the path of the one meant",
+                    file=self.source,
+                    element=element,
+                )
+            if found:
+                self._guess(
+                    ("same name", uri, base),
+                    element,
+                    f"'{uri}' does not exist ({path}); using {found[0]}, the only file of that "
+                    f"name below {root}",
+                    fix="write the path where the file is",
+                )
+                return found[0]
+        return path
 
     def _resolve(self, uri: str, element: str | None, base: Path) -> Path:
         for scheme in ("package://", "model://"):  # Gazebo model URIs: a folder, like a package
