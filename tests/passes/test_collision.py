@@ -14,13 +14,6 @@ import trimesh
 from scipy.spatial import ConvexHull
 
 from urdf2mjcf.assets import stl_bytes
-from urdf2mjcf.convexity import hull_fit
-from urdf2mjcf.decompose_cache import (
-    DecompositionCache,
-    array_digest,
-    cache_key,
-    default_cache_dir,
-)
 from urdf2mjcf.errors import MeshError
 from urdf2mjcf.ir import (
     Box,
@@ -40,6 +33,13 @@ from urdf2mjcf.ir import (
 )
 from urdf2mjcf.passes import collision
 from urdf2mjcf.passes.collision import CollisionConfig
+from urdf2mjcf.passes.collision.convexity import hull_fit
+from urdf2mjcf.passes.collision.decompositions import (
+    DecompositionCache,
+    array_digest,
+    cache_key,
+    default_cache_dir,
+)
 
 # ---------------------------------------------------------------------------
 # Test meshes (generated, metres)

@@ -26,7 +26,7 @@ from scipy.spatial import ConvexHull
 import urdf2mjcf
 from urdf2mjcf.cli import urdf2mjcf_command
 
-WORKER_LOG = "urdf2mjcf.passes.decompose_worker"
+WORKER_LOG = "urdf2mjcf.passes.collision.worker"
 
 
 # ---------------------------------------------------------------------------
@@ -156,7 +156,7 @@ def running(pid: int) -> bool:
         cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
     except OSError:
         return True
-    return cmdline == b"" or b"decompose_worker" in cmdline
+    return cmdline == b"" or b"passes.collision.worker" in cmdline
 
 
 # ---------------------------------------------------------------------------

@@ -59,7 +59,7 @@ _HEADER = struct.Struct("<Q")
 _EOF = object()
 _BOOTSTRAP = (
     "import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
-    "from urdf2mjcf.passes.decompose_worker import main; main(int(sys.argv[2]))"
+    "from urdf2mjcf.passes.collision.worker import main; main(int(sys.argv[2]))"
 )
 
 

@@ -64,11 +64,10 @@ from typing import Literal
 
 import numpy as np
 
-from ..errors import InertiaError
-from ..geometry import primitive_geom
-from ..ir import BodyInertial, Link, MeshAsset, MeshRef, Model, Note, Plane, Robot
-from ..mass_properties import MassProperties, combine, convex_hull, mesh_solid, primitive
-from ..transforms import (
+from ...errors import InertiaError
+from ...geometry import primitive_geom
+from ...ir import BodyInertial, Link, MeshAsset, MeshRef, Model, Note, Plane, Robot
+from ...transforms import (
     inertia_matrix,
     mujoco_fullinertia,
     pose_matrix,
@@ -76,6 +75,7 @@ from ..transforms import (
     transform,
     vec3,
 )
+from .mass_properties import MassProperties, combine, convex_hull, mesh_solid, primitive
 
 Source = Literal["urdf", "repaired", "estimated"]
 Six = tuple[float, float, float, float, float, float]

@@ -1,7 +1,7 @@
 """Pass 5b: described sensors and cameras -> MuJoCo sites, cameras and sensors.
 
 Runs after the actuators pass and before emit. Reads the ``<gazebo>`` and
-``<ros2_control>`` extensions (parsed by :mod:`urdf2mjcf.gazebo_sensors`) and
+``<ros2_control>`` extensions (parsed by :mod:`.gazebo`) and
 the actuators, and fills ``Model.sites``, ``Model.cameras``, ``Model.sensors``.
 A robot without any of these returns unchanged.
 
@@ -52,9 +52,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .. import gazebo_sensors as gz
-from ..ir import Camera, Geom, Joint, MeshAsset, Model, Note, Quat, Sensor, Site, Vec3
-from ..transforms import (
+from ...ir import Camera, Geom, Joint, MeshAsset, Model, Note, Quat, Sensor, Site, Vec3
+from ...transforms import (
     IDENTITY_QUAT,
     canonical_quat,
     pose_matrix,
@@ -64,6 +63,7 @@ from ..transforms import (
     transform,
     vec3,
 )
+from . import gazebo as gz
 
 Q_OPTICAL_TO_CAMERA: Quat = (0.0, 1.0, 0.0, 0.0)
 """MuJoCo camera in a ROS optical frame: 180 deg about x."""

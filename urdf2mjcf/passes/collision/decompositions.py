@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .ir import MeshData
+from ...ir import MeshData
 
 logger = logging.getLogger(__name__)
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ir import MeshData
+from ...ir import MeshData
 
 HULL_SAMPLES = 3000
 """Points spread over the hull surface (about; every hull triangle gets one)."""

@@ -23,8 +23,8 @@ from typing import Literal
 
 from lxml import etree
 
-from .ir import Note, Quat, Vec3
-from .transforms import IDENTITY_QUAT, canonical_quat, quat_from_rpy
+from ...ir import Note, Quat, Vec3
+from ...transforms import IDENTITY_QUAT, canonical_quat, quat_from_rpy
 
 SensorKind = Literal["camera", "imu", "force_torque", "lidar", "contact"]
 

@@ -1,15 +1,15 @@
 """Collision pass: URDF collision elements -> MuJoCo collision geoms.
 
 Primitives stay primitives. A mesh whose convex hull fits it closely (hull gap
-at most :attr:`CollisionConfig.max_hull_gap`, see :mod:`urdf2mjcf.convexity`)
+at most :attr:`CollisionConfig.max_hull_gap`, see :mod:`.convexity`)
 becomes that hull; a clearly concave one is split by CoACD into convex parts,
 one geom each, all placed at the element's origin like the mesh itself. A flat
 mesh (no volume) becomes a thin box, which MuJoCo can collide with.
 
-Decompositions run in worker processes (:mod:`.decompose_worker`), so that
+Decompositions run in worker processes (:mod:`.worker`), so that
 CoACD crashing (a C++ assertion aborts the process) or hanging costs only
 that mesh: it gets its convex hull and a warning. Results are kept in a disk
-cache (:mod:`urdf2mjcf.decompose_cache`) and applied in document order
+cache (:mod:`.decompositions`) and applied in document order
 whatever order they finish in, so the output does not depend on ``workers``.
 
 Determinism: CoACD 1.0.14 with a fixed ``seed`` returns bit-identical parts
@@ -31,8 +31,12 @@ from typing import Literal
 
 import numpy as np
 
-from ..assets import merge_assets, mesh_asset, safe_stem
-from ..convexity import (
+from ...assets import merge_assets, mesh_asset, safe_stem
+from ...errors import MeshError
+from ...geometry import primitive_geom
+from ...ir import Collision, Geom, LoadedMesh, MeshAsset, MeshData, MeshRef, Model, Note, Visual
+from ...transforms import pose_matrix, quat_from_rpy, split_transform, vec3
+from .convexity import (
     CANDIDATES,
     HULL_SAMPLES,
     MESH_SAMPLES,
@@ -42,12 +46,8 @@ from ..convexity import (
     flat_box,
     hull_fit,
 )
-from ..decompose_cache import DecompositionCache, array_digest, cache_key, default_cache_dir
-from ..errors import MeshError
-from ..geometry import primitive_geom
-from ..ir import Collision, Geom, LoadedMesh, MeshAsset, MeshData, MeshRef, Model, Note, Visual
-from ..transforms import pose_matrix, quat_from_rpy, split_transform, vec3
-from .decompose_worker import decompose_all
+from .decompositions import DecompositionCache, array_digest, cache_key, default_cache_dir
+from .worker import decompose_all
 
 logger = logging.getLogger(__name__)
 
@@ -96,7 +96,7 @@ class CollisionConfig:
     """Which URDF elements give the collision geometry; ``none`` gives no collision geoms."""
     max_hull_gap: float = 0.02
     """Meshes whose hull gap (mean hull-to-mesh surface distance / bounding-box
-    diagonal, see :mod:`urdf2mjcf.convexity`) exceeds this are decomposed; the
+    diagonal, see :mod:`.convexity`) exceeds this are decomposed; the
     rest become their convex hull. 0.02 sends 92 of the 374 distinct collision
     meshes of example-robot-data to CoACD (brackets, U shapes, forks, frames,
     L-shaped links) and keeps ordinary links as hulls; a U bracket with mesh /
