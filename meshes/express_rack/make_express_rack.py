@@ -21,11 +21,13 @@ and triangle order (urdf2mjcf.assets.stl_bytes).
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from manifold3d import Manifold, OpType
 
-from urdf2mjcf.csg import box, cylinder_z, write_meshes
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # meshes/csg.py
+from csg import box, cylinder_z, write_meshes  # noqa: E402
 
 SEGMENTS = 48
 

@@ -20,11 +20,13 @@ and triangle order (urdf2mjcf.assets.stl_bytes).
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 from manifold3d import Manifold, OpType
 
-from urdf2mjcf.csg import box, cylinder_x, cylinder_y, cylinder_z, write_meshes
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # meshes/csg.py
+from csg import box, cylinder_x, cylinder_y, cylinder_z, write_meshes  # noqa: E402
 
 # --- hatch frame (hatch frame coordinates, metres) -------------------------
 WALL_X = (0.61, 0.66)  # bulkhead slab; its front face (x = 0.66) faces the door

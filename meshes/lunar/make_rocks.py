@@ -16,12 +16,14 @@ header (urdf2mjcf.assets.stl_bytes).
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 from manifold3d import Manifold
 
-from urdf2mjcf.csg import write_meshes
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # meshes/csg.py
+from csg import write_meshes  # noqa: E402
 
 ROCKS = 5
 POINTS = 48

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 from manifold3d import Manifold
 
-from .assets import stl_bytes
-from .ir import MeshData
+from urdf2mjcf.assets import stl_bytes
+from urdf2mjcf.ir import MeshData
 
 Interval = tuple[float, float]
 SEGMENTS = 64
