@@ -16,7 +16,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
     # Lazy: importing the package must not import mujoco (its OpenGL backend is
     # chosen at import time; see urdf2mjcf.headless) or the heavy mesh stack.
     if name in _EXPORTS:

@@ -10,7 +10,7 @@ diagonal servo gains. :func:`design` chooses the gains that were not given;
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -271,7 +271,7 @@ def _min_zeta(system: ServoSystem, kp: Mapping[str, float], kv: Mapping[str, flo
     return float(np.min(-s.real / np.abs(s)))
 
 
-def _least_scale(ok) -> float | None:
+def _least_scale(ok: Callable[[float], bool]) -> float | None:
     """Least factor in [1, 10] for which ``ok`` holds (None when even 10 fails)."""
     if ok(1.0):
         return 1.0

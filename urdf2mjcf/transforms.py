@@ -7,6 +7,7 @@ R = Rz(yaw) @ Ry(pitch) @ Rx(roll).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -122,7 +123,7 @@ def split_transform(t: np.ndarray) -> tuple[Vec3, Quat]:
     return (float(p[0]) + 0.0, float(p[1]) + 0.0, float(p[2]) + 0.0), matrix_to_quat(t[:3, :3])
 
 
-def vec3(v) -> Vec3:
+def vec3(v: Sequence[float] | np.ndarray) -> Vec3:
     return (float(v[0]) + 0.0, float(v[1]) + 0.0, float(v[2]) + 0.0)
 
 

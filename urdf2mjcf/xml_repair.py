@@ -67,11 +67,11 @@ def _root_end(data: bytes) -> int | None:
     parser = xml.parsers.expat.ParserCreate()
     depth, end = 0, None
 
-    def start(_name, _attrs) -> None:
+    def start(_name: str, _attrs: object) -> None:
         nonlocal depth
         depth += 1
 
-    def stop(_name) -> None:
+    def stop(_name: str) -> None:
         nonlocal depth, end
         depth -= 1
         if depth == 0 and end is None:

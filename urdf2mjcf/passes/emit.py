@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from lxml import etree
@@ -28,6 +29,8 @@ from ..transforms import (
 )
 
 log = logging.getLogger(__name__)
+
+_Placed = TypeVar("_Placed", Geom, Site, Camera)
 
 WORLD = "world"
 MAX_BODY_DEPTH = 496
@@ -79,7 +82,7 @@ class _Body:
     children: list[_Body] = field(default_factory=list)
 
 
-def _moved(item, t: np.ndarray):
+def _moved(item: _Placed, t: np.ndarray) -> _Placed:
     """A geom, site or camera moved by the transform ``t`` (fusing a fixed link)."""
     pos, quat = split_transform(t @ transform(item.pos, item.quat))
     return replace(item, pos=pos, quat=quat)

@@ -82,7 +82,12 @@ class _Reader:
         self.notes.append(Note("warning", f"{self.source}: {element}", message))
 
     def floats(
-        self, el: etree._Element, attr: str, n: int, where: str, default=None
+        self,
+        el: etree._Element,
+        attr: str,
+        n: int,
+        where: str,
+        default: tuple[float, ...] | None = None,
     ) -> tuple[float, ...]:
         text = el.get(attr)
         if text is None:

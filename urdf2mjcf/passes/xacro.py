@@ -16,7 +16,7 @@ import logging
 import re
 import threading
 import xml.parsers.expat
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager, redirect_stderr
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -72,7 +72,7 @@ def _needs_xacro(source: Path, data: bytes, args: Mapping[str, str]) -> bool:
 
 
 @contextmanager
-def _patched_find(resolver: PackageResolver):
+def _patched_find(resolver: PackageResolver) -> Iterator[None]:
     """Route xacro's ``$(find pkg)`` and ``${find('pkg')}`` to our resolver."""
     from xacro import substitution_args as sa
 
