@@ -60,7 +60,12 @@ def xacro_args(recipe: Recipe, placements: dict[str, Pose2D]) -> dict[str, str]:
 
 
 def _convert_options(
-    root: Path, recipe: Recipe, *, workers: int, cache_dir: Path | None, progress
+    root: Path,
+    recipe: Recipe,
+    *,
+    workers: int,
+    cache_dir: Path | None,
+    progress: Callable[[int, int, str], None] | None,
 ) -> dict:
     return {
         "package_paths": [root / d for d in PACKAGE_DIRS],

@@ -11,9 +11,13 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from .. import output
 from .recipe import Pose2D, Recipe
+
+if TYPE_CHECKING:
+    import mujoco
 
 MANIFEST = "facility.json"
 GENERATOR = "make-facility"
@@ -25,13 +29,13 @@ def _pose(p: Pose2D) -> dict:
     return {"xyz": list(p.xyz), "yaw": p.yaw}
 
 
-def _name(m, objtype, i: int) -> str:
+def _name(m: mujoco.MjModel, objtype: int, i: int) -> str:
     import mujoco
 
     return mujoco.mj_id2name(m, objtype, i) or ""
 
 
-def _prefixed(value, prefix: str):
+def _prefixed(value: Any, prefix: str) -> Any:
     """Role values with the component's prefix: names in lists and mappings, numbers as they are."""
     if isinstance(value, str):
         return prefix + value
@@ -42,7 +46,7 @@ def _prefixed(value, prefix: str):
     return value
 
 
-def _check_names(m, value, where: str) -> None:
+def _check_names(m: mujoco.MjModel, value: Any, where: str) -> None:
     """Every name a role gives must exist in the compiled model (as some kind of object)."""
     import mujoco
 
@@ -69,7 +73,8 @@ def _check_names(m, value, where: str) -> None:
             _check_names(m, v, where)
 
 
-def _components(m, placements: dict[str, Pose2D], roles: dict[str, dict]) -> dict:
+def _components(
+    m: mujoco.MjModel, placements: dict[str, Pose2D], roles: dict[str, dict]) -> dict:
     out = {}
     joint_names = [_name(m, 3, j) for j in range(m.njnt)]  # mjOBJ_JOINT
     for name in sorted(set(placements) | set(roles)):

@@ -11,8 +11,12 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
+
+if TYPE_CHECKING:
+    from .load import Facility
 
 
 def _table(steps: list[dict]) -> str:
@@ -92,8 +96,16 @@ def _frames_folder(
     help="replace a --report file, or write into a --frames folder, that we did not write",
 )
 def facility_demo_command(
-    scene, waypoints, trials, seed, recipe, report, frames, workers, overwrite
-):
+    scene: Path,
+    waypoints: Path | None,
+    trials: int,
+    seed: int,
+    recipe: Path | None,
+    report: Path | None,
+    frames: Path | None,
+    workers: int | None,
+    overwrite: bool,
+) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
     from .. import headless
 
@@ -113,12 +125,13 @@ def facility_demo_command(
     if report:
         out.check_file(report, overwrite, GENERATOR)
     previous = out.check_folder(frames, overwrite, FRAMES_MANIFEST, GENERATOR) if frames else []
+    trial_recipe = None
     if trials:
-        recipe = recipe or root / (fac.manifest.get("recipe_file") or "recipes/imetro.yaml")
-        load_recipe(recipe)  # here, not in each trial's process
+        trial_recipe = recipe or root / (fac.manifest.get("recipe_file") or "recipes/imetro.yaml")
+        load_recipe(trial_recipe)  # here, not in each trial's process
     with _frames_folder(frames, previous, overwrite) as staged:
-        if trials:
-            result, success = _trials(recipe, root, waypoints, seed, trials, workers, staged)
+        if trial_recipe is not None:
+            result, success = _trials(trial_recipe, root, waypoints, seed, trials, workers, staged)
         else:
             result, success = _once(fac, spec, staged)
     if report:
@@ -126,7 +139,15 @@ def facility_demo_command(
     sys.exit(0 if success else 1)
 
 
-def _trials(recipe, root, waypoints, seed, trials, workers, frames) -> tuple[dict, bool]:
+def _trials(
+    recipe: Path,
+    root: Path,
+    waypoints: Path,
+    seed: int,
+    trials: int,
+    workers: int | None,
+    frames: Path | None,
+) -> tuple[dict, bool]:
     from .trials import run_trials
 
     seeds = list(range(seed, seed + trials))
@@ -143,7 +164,7 @@ def _trials(recipe, root, waypoints, seed, trials, workers, frames) -> tuple[dic
     return result, ok == len(results)
 
 
-def _once(fac, spec: dict, frames: Path | None) -> tuple[dict, bool]:
+def _once(fac: Facility, spec: dict, frames: Path | None) -> tuple[dict, bool]:
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -90,7 +91,14 @@ def _rotation(z: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 class Demo:
-    def __init__(self, fac: Facility, spec: dict, *, frames: Path | None = None, log=print):
+    def __init__(
+        self,
+        fac: Facility,
+        spec: dict,
+        *,
+        frames: Path | None = None,
+        log: Callable[[str], None] = print,
+    ) -> None:
         self.fac, self.spec = fac, spec
         self.m, self.d, self.r = fac.model, fac.data, fac.robot
         rs = spec.get("robot", {})
@@ -150,7 +158,9 @@ class Demo:
         if extra is not None:
             Image.fromarray(extra).save(self.frames / f"{name}_wrist.png")
 
-    def ik(self, pos, rot, q0=None) -> np.ndarray:
+    def ik(
+        self, pos: np.ndarray, rot: np.ndarray | None, q0: np.ndarray | None = None
+    ) -> np.ndarray:
         res = self._ik.solve(self.d, pos, rot, q0=q0)
         if not res.ok:
             raise StepError(
@@ -191,7 +201,7 @@ class Demo:
         if step.get("settle", kind not in ("wait", "gripper", "look")):
             self.ctl.settle(timeout=step.get("settle_timeout", 1.5))
 
-    def _do_joints(self, step):
+    def _do_joints(self, step: dict) -> None:
         q = self.ctl.target.copy()
         if "q" in step:
             q = np.array(step["q"], float)
@@ -201,7 +211,7 @@ class Demo:
             q[self.r.joint_names.index(name)] = value
         self.ctl.move_to(q, step.get("duration"))
 
-    def _target_pose(self, step):
+    def _target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
         origin, R0 = _frame(self, step.get("frame", "world"))
         pos = origin + R0 @ np.asarray(step["position"], float)
         _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
@@ -213,7 +223,7 @@ class Demo:
             R = Rcur
         return pos, R
 
-    def _do_pose(self, step):
+    def _do_pose(self, step: dict) -> None:
         pos, R = self._target_pose(step)
         if step.get("joint_space"):
             q = self.ik(
@@ -224,7 +234,7 @@ class Demo:
         path = self.cartesian_path([(pos, R)], self.ctl.target.copy())
         self.ctl.follow(path, step.get("duration"))
 
-    def _do_relative(self, step):
+    def _do_relative(self, step: dict) -> None:
         p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
         if "tool" in step:
             p = p + R @ np.asarray(step["tool"], float)
@@ -233,7 +243,7 @@ class Demo:
         path = self.cartesian_path([(p, R)], self.ctl.target.copy())
         self.ctl.follow(path, step.get("duration"))
 
-    def _do_hinge(self, step):
+    def _do_hinge(self, step: dict) -> None:
         j = self.fac.joint(step["joint"])
         anchor, axis = hinge_axis(self.m, self.d, j)
         p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
@@ -251,27 +261,27 @@ class Demo:
         prev = 0.0
         for ang, _, _ in poses:  # each pose of the arc, reached along the circle
             n = max(2, int(math.ceil(math.degrees(ang - prev))))
-            path = [q]
+            waypoints = [q]
             for k in range(1, n + 1):
                 sp, sR = turned(anchor, axis, p, R, prev + (ang - prev) * k / n, hold)
                 q = self.ik(sp, sR, q0=q)
-                path.append(q)
-            path = np.array(path)
+                waypoints.append(q)
+            path = np.array(waypoints)
             self.ctl.follow(
                 path, max(step.get("step_time", 1.0), path_duration(path, self.ctl.vmax))
             )
             self.ctl.settle(timeout=0.5)
             prev = ang
 
-    def _do_gripper(self, step):
+    def _do_gripper(self, step: dict) -> None:
         what = step["action"]
         opening = {"open": self.r.gripper_open, "close": self.r.gripper_closed}.get(what, what)
         self.ctl.set_gripper(float(opening), step.get("seconds", 1.0))
 
-    def _do_wait(self, step):
+    def _do_wait(self, step: dict) -> None:
         self.ctl.wait(step["seconds"])
 
-    def _do_look(self, step):
+    def _do_look(self, step: dict) -> None:
         cam = self.camera(step.get("camera", "wrist"))
         rgb, depth = cam.rgbd(self.d)
         g = perception.find_handle(self.m, self.d, cam.cam, rgb, depth, step.get("min_pixels", 200))
@@ -384,7 +394,11 @@ class Demo:
 
 
 def run_demo(
-    scene: str | Path, waypoints: str | Path, *, frames: Path | None = None, log=print
+    scene: str | Path,
+    waypoints: str | Path,
+    *,
+    frames: Path | None = None,
+    log: Callable[[str], None] = print,
 ) -> DemoResult:
     from .load import load
 

@@ -18,6 +18,7 @@ Poses are (position, 3x3 rotation) of a site in the world.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import mink
 import mujoco
@@ -52,14 +53,23 @@ class _JointBox(mink.Limit):
     """The ranges of the IK's own joints only (mink's ConfigurationLimit takes every
     limited joint of the model, mockups included, whose state may sit past its range)."""
 
-    def __init__(self, m: mujoco.MjModel, dof_adr, lower, upper, gain: float = 0.95):
+    def __init__(
+        self,
+        m: mujoco.MjModel,
+        dof_adr: np.ndarray,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        gain: float = 0.95,
+    ) -> None:
         self.P = np.eye(m.nv)[np.asarray(dof_adr)]
         self.lower, self.upper, self.gain = np.asarray(lower), np.asarray(upper), gain
 
     def set_q(self, q: np.ndarray) -> None:
         self.q = q
 
-    def compute_qp_inequalities(self, configuration, dt):
+    def compute_qp_inequalities(
+        self, configuration: mink.Configuration, dt: float
+    ) -> mink.Constraint:
         del configuration, dt
         G = np.vstack([self.P, -self.P])
         h = self.gain * np.concatenate([self.upper - self.q, self.q - self.lower])
@@ -164,7 +174,7 @@ def solve(
     *,
     q0: np.ndarray | None = None,
     weights: np.ndarray | None = None,
-    **kw,
+    **kw: Any,
 ) -> IKResult:
     """One IK solution with a fresh :class:`ArmIK` (callers solving many poses keep one)."""
     ik = ArmIK(m, site, qpos_adr, dof_adr, lower, upper, weights=weights)

@@ -26,10 +26,14 @@ U-shaped forks and gripper jaws measure 0.024-0.034. The cost is about
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ...ir import MeshData
+
+if TYPE_CHECKING:
+    import trimesh
 
 HULL_SAMPLES = 3000
 """Points spread over the hull surface (about; every hull triangle gets one)."""
@@ -51,7 +55,7 @@ class HullFit:
     """Bounding-box diagonal of the mesh, metres."""
 
 
-def as_trimesh(mesh: MeshData):
+def as_trimesh(mesh: MeshData) -> trimesh.Trimesh:
     """A processed trimesh (duplicate vertices merged), deterministic for given arrays."""
     import trimesh
 
@@ -96,7 +100,7 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
 
 
-def hull_fit(mesh) -> HullFit:
+def hull_fit(mesh: trimesh.Trimesh) -> HullFit:
     """Hull of a trimesh and its :attr:`HullFit.gap` (deterministic: fixed seeds)."""
     import trimesh
     from scipy.spatial import cKDTree

@@ -10,8 +10,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import trimesh
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +97,7 @@ def primitive(gtype: str, size: Sequence[float], density: float) -> MassProperti
     raise ValueError(f"not a primitive geom type: {gtype!r}")
 
 
-def _closed(mesh, density: float) -> MassProperties | None:
+def _closed(mesh: trimesh.Trimesh, density: float) -> MassProperties | None:
     """Mass properties of a closed, consistently wound ``trimesh.Trimesh``."""
     with np.errstate(divide="ignore", invalid="ignore"):  # zero volume divides by zero
         props = mesh.mass_properties

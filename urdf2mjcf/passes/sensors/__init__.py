@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -109,7 +110,9 @@ class _Builder:
 
     # -- names -------------------------------------------------------------
 
-    def _unique(self, name: str, taken, element: str, what: str) -> str:
+    def _unique(
+        self, name: str, taken: Callable[[str], bool], element: str, what: str
+    ) -> str:
         final, k = name, 2
         while taken(final):
             final, k = f"{name}_{k}", k + 1

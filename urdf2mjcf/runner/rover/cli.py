@@ -59,7 +59,16 @@ from .tasks import ArmWave, Straight, Task, Turn
 )
 @click.option("--overwrite", is_flag=True, help="replace a --report file we did not write")
 def rover_drive_command(
-    scene: Path, names, distance, speed, turn, rate, arm, settle, report, overwrite
+    scene: Path,
+    names: tuple[str, ...],
+    distance: float,
+    speed: float,
+    turn: float,
+    rate: float,
+    arm: bool,
+    settle: float,
+    report: Path | None,
+    overwrite: bool,
 ) -> None:
     """Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, then
     turn in place; print wheel odometry against the true pose."""
