@@ -11,16 +11,16 @@ import numpy as np
 from .roles import Rover
 
 
-def _yaw(quat: np.ndarray) -> float:
+def yaw_of(quat: np.ndarray) -> float:
     w, x, y, z = quat
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
-def _wrap(angle: float) -> float:
+def wrap_angle(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-def _rotation(quat: np.ndarray) -> np.ndarray:
+def rotation_matrix(quat: np.ndarray) -> np.ndarray:
     r = np.zeros(9)
     mujoco.mju_quat2Mat(r, np.asarray(quat, float))
     return r.reshape(3, 3)
@@ -41,7 +41,7 @@ class Odometry:
     """Yaw turned according to the wheels (rad, unwrapped)."""
     turned_imu: float = 0.0
     """Yaw turned according to the IMU's orientation (rad, unwrapped)."""
-    _imu_yaw: float = 0.0
+    imu_yaw: float = 0.0
 
     def update(self, rover: Rover, d: mujoco.MjData, dt: float) -> None:
         wl = float(np.mean(d.sensordata[rover.left_vel]))
@@ -51,14 +51,14 @@ class Odometry:
         mid = self.yaw + w * dt / 2
         self.x += v * math.cos(mid) * dt
         self.y += v * math.sin(mid) * dt
-        self.yaw = _wrap(self.yaw + w * dt)
+        self.yaw = wrap_angle(self.yaw + w * dt)
         self.turned += w * dt
         self.distance += v * dt
         q = d.sensordata[rover.orientation : rover.orientation + 4]
-        self.fused = self.fused + _rotation(q)[:, 0] * v * dt
-        yaw = _yaw(q)
-        self.turned_imu += _wrap(yaw - self._imu_yaw)
-        self._imu_yaw = yaw
+        self.fused = self.fused + rotation_matrix(q)[:, 0] * v * dt
+        yaw = yaw_of(q)
+        self.turned_imu += wrap_angle(yaw - self.imu_yaw)
+        self.imu_yaw = yaw
 
 
 @dataclass

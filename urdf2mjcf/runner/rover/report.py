@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .odometry import _wrap, true_pose
+from .odometry import true_pose, wrap_angle
 from .roles import Rover
 from .tasks import Task
 
@@ -91,7 +91,7 @@ class _Track:
         p = sim.d.xpos[r.base]
         self.path += float(np.linalg.norm(p - self.last))
         self.last = p.copy()
-        self.turned += _wrap(pose.yaw - self.last_yaw)
+        self.turned += wrap_angle(pose.yaw - self.last_yaw)
         self.last_yaw = pose.yaw
 
     def report(self, sim: RoverSim, task: Task, duration: float) -> TaskReport:
@@ -140,7 +140,7 @@ class _Track:
             true_turn=math.degrees(self.turned),
             odometry_position_error=math.hypot(odo.x - pose.x, odo.y - pose.y),
             fused_position_error=float(np.linalg.norm(odo.fused - p)),
-            odometry_heading_error=math.degrees(abs(_wrap(odo.yaw - pose.yaw))),
+            odometry_heading_error=math.degrees(abs(wrap_angle(odo.yaw - pose.yaw))),
             slip=slip,
             max_tilt=math.degrees(self.tilt),
             max_roll=math.degrees(self.roll),

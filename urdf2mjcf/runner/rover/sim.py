@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from ..load import LoadError, open_facility
-from .odometry import Odometry, _rotation, _yaw, true_pose
+from .odometry import Odometry, rotation_matrix, true_pose, yaw_of
 from .report import TaskReport, _Track
 from .roles import Rover, RoverError, find_rovers
 from .tasks import ArmWave, Task
@@ -58,7 +58,7 @@ class RoverSim:
             pose = true_pose(self.m, self.d, r)
             q = self.d.sensordata[r.orientation : r.orientation + 4]
             self.odometry[n] = Odometry(
-                pose.x, pose.y, pose.yaw, self.d.xpos[r.base].copy(), _imu_yaw=_yaw(q)
+                pose.x, pose.y, pose.yaw, self.d.xpos[r.base].copy(), imu_yaw=yaw_of(q)
             )
 
     def rover(self, name: str | None = None) -> Rover:
@@ -175,5 +175,5 @@ class RoverSim:
         """(magnitude, vertical component in the world) of the accelerometer reading, m/s^2."""
         a = self.d.sensordata[rover.accel : rover.accel + 3]
         q = self.d.sensordata[rover.orientation : rover.orientation + 4]
-        world = _rotation(q) @ a
+        world = rotation_matrix(q) @ a
         return float(np.linalg.norm(a)), float(world[2])
