@@ -43,6 +43,7 @@ class UrdfDocument:
     xml: bytes
     """The expanded URDF document."""
     resolver: PackageResolver
+    """Resolves the document's ``package://``, ``file://`` and relative URIs to files."""
     expanded: bool = False
     """True when xacro ran on the source."""
     warnings: tuple[str, ...] = ()
@@ -74,6 +75,7 @@ class Box:
 @dataclass(frozen=True)
 class Cylinder:
     radius: float
+    """Metres."""
     length: float
     """Full length along the local z axis, metres."""
 
@@ -81,6 +83,7 @@ class Cylinder:
 @dataclass(frozen=True)
 class Sphere:
     radius: float
+    """Metres."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +91,7 @@ class Capsule:
     """Non-standard but common URDF extension: cylinder with hemispherical caps."""
 
     radius: float
+    """Radius of the cylinder and of its caps, metres."""
     length: float
     """Length of the cylindrical part along z, metres."""
 
@@ -99,6 +103,7 @@ class MeshRef:
     path: Path | None
     """Resolved absolute path, or None when it could not be resolved."""
     scale: Vec3 = (1.0, 1.0, 1.0)
+    """(3,) per-axis factors applied to the file's vertices, dimensionless."""
 
 
 @dataclass(frozen=True)
@@ -117,7 +122,9 @@ Geometry = Box | Cylinder | Sphere | Capsule | MeshRef | Plane
 @dataclass(frozen=True)
 class Material:
     name: str
+    """The ``name`` attribute; "" when unnamed."""
     rgba: RGBA | None = None
+    """(4,) ``<color rgba>``, each 0..1; None when there is no ``<color>``."""
     texture: Path | None = None
     """Resolved absolute path of an image texture, if any."""
 
@@ -125,16 +132,23 @@ class Material:
 @dataclass(frozen=True)
 class Visual:
     origin: Pose
+    """Pose of the geometry frame in the link frame."""
     geometry: Geometry
+    """The shape, sizes in metres (zero-size shapes are dropped by parse)."""
     material: Material | None = None
+    """Inline ``<material>``, or the top-level one it names; None when absent."""
     name: str | None = None
+    """The ``name`` attribute, or None."""
 
 
 @dataclass(frozen=True)
 class Collision:
     origin: Pose
+    """Pose of the geometry frame in the link frame."""
     geometry: Geometry
+    """The shape, sizes in metres (zero-size shapes are dropped by parse)."""
     name: str | None = None
+    """The ``name`` attribute, or None; names the collision geoms when unique."""
 
 
 @dataclass(frozen=True)
@@ -150,9 +164,13 @@ class Inertial:
 @dataclass(frozen=True)
 class Link:
     name: str
+    """Link name, unique in the robot."""
     inertial: Inertial | None = None
+    """The ``<inertial>``, or None when absent."""
     visuals: tuple[Visual, ...] = ()
+    """``<visual>`` elements in document order (unusable ones dropped)."""
     collisions: tuple[Collision, ...] = ()
+    """``<collision>`` elements in document order (unusable ones dropped)."""
 
 
 JointType = Literal[
@@ -175,6 +193,7 @@ class Limit:
     lower: float | None = None
     """rad or m; None when absent."""
     upper: float | None = None
+    """rad (revolute) or m (prismatic); None when absent."""
     effort: float | None = None
     """N m or N; None when absent."""
     velocity: float | None = None
@@ -194,6 +213,7 @@ class Mimic:
     joint: str
     """Name of the leader joint."""
     multiplier: float = 1.0
+    """Follower per leader unit: rad/rad or m/m (rad/m or m/rad across joint types)."""
     offset: float = 0.0
     """follower = multiplier * leader + offset."""
 
@@ -201,15 +221,23 @@ class Mimic:
 @dataclass(frozen=True)
 class Joint:
     name: str
+    """Joint name, unique in the robot."""
     type: JointType
+    """URDF joint type; non-URDF aliases already mapped by parse."""
     parent: str
+    """Name of the parent link."""
     child: str
+    """Name of the child link."""
     origin: Pose = Pose()
+    """Pose of the joint (= child link) frame in the parent link frame."""
     axis: Vec3 = (1.0, 0.0, 0.0)
     """(3,) unit vector in the joint (= child link) frame."""
     limit: Limit | None = None
+    """The ``<limit>``; units follow the type (rad or m). None when absent."""
     dynamics: Dynamics | None = None
+    """The ``<dynamics>`` damping and friction; None when absent."""
     mimic: Mimic | None = None
+    """The ``<mimic>`` (one naming a missing joint is dropped); None when absent."""
 
 
 @dataclass(frozen=True)
@@ -225,13 +253,17 @@ class Extension:
 @dataclass(frozen=True)
 class Robot:
     name: str
+    """``<robot name>``, or the source file's stem when it has none."""
     source: Path
     """The file the description was read from (for error messages)."""
     links: tuple[Link, ...]
+    """All links in document order; they form one tree."""
     joints: tuple[Joint, ...]
+    """All joints in document order."""
     materials: tuple[Material, ...] = ()
     """Top-level named materials."""
     extensions: tuple[Extension, ...] = ()
+    """Top-level extension elements in document order."""
 
     @cached_property
     def link_map(self) -> dict[str, Link]:
@@ -304,6 +336,7 @@ class MeshPart:
     """One material's share of a loaded mesh file."""
 
     mesh: MeshData
+    """This part's triangles, metres, in the mesh-file frame."""
     material: str | None
     """Name of a :class:`MaterialAsset`, or None for the element's own colour."""
 
@@ -313,7 +346,9 @@ class LoadedMesh:
     """A mesh file loaded once for a given scale."""
 
     path: Path
+    """Resolved absolute path of the mesh file."""
     scale: Vec3
+    """(3,) per-axis factors applied to its vertices (``MeshRef.scale``), dimensionless."""
     parts: tuple[MeshPart, ...]
     """Per-material pieces (visual use)."""
     merged: MeshData
@@ -337,14 +372,19 @@ class MeshAsset:
 @dataclass(frozen=True)
 class TextureAsset:
     name: str
+    """MJCF texture asset name; unique, from the image stem and the content hash."""
     file: str
+    """File name inside ``assets/`` (``<name>.png``)."""
     data: bytes = field(repr=False)
+    """Exact file content (8-bit RGB or RGBA PNG)."""
 
 
 @dataclass(frozen=True)
 class MaterialAsset:
     name: str
+    """MJCF material asset name; unique, from a stem and the content hash."""
     rgba: RGBA = (1.0, 1.0, 1.0, 1.0)
+    """(4,) red, green, blue, alpha, each 0..1."""
     texture: str | None = None
     """Name of a :class:`TextureAsset`."""
 
@@ -355,7 +395,9 @@ GeomType = Literal["box", "sphere", "cylinder", "capsule", "mesh", "plane"]
 @dataclass(frozen=True)
 class Geom:
     role: Literal["visual", "collision"]
+    """Emit's default class: ``visual`` (group 2, no contacts) or ``collision`` (group 3)."""
     type: GeomType
+    """MuJoCo geom type; decides what ``size`` means."""
     pos: Vec3
     """Position in the link frame, metres."""
     quat: Quat
@@ -368,7 +410,9 @@ class Geom:
     material: str | None = None
     """MaterialAsset name."""
     rgba: RGBA | None = None
+    """(4,) colour, each 0..1, overriding ``material``; None: material or class colour."""
     name: str | None = None
+    """MJCF geom name (collision geoms get one from the collision pass), or None."""
 
 
 @dataclass(frozen=True)
@@ -380,6 +424,7 @@ class BodyInertial:
     fullinertia: tuple[float, float, float, float, float, float]
     """MuJoCo order (ixx, iyy, izz, ixy, ixz, iyz), kg m^2, about the COM, link axes."""
     source: Literal["urdf", "repaired", "estimated"] = "urdf"
+    """Where it came from: the URDF as given, repaired for MuJoCo, or estimated from geometry."""
 
 
 ActuatorKind = Literal["position", "velocity", "motor"]
@@ -392,6 +437,7 @@ class Actuator:
     name: str
     """Actuator name; by convention the joint name."""
     joint: str
+    """Name of the (one-degree-of-freedom) joint it drives."""
     kind: ActuatorKind
     """``position`` (servo with kp, kv), ``velocity`` (gain kv) or ``motor`` (torque)."""
     kp: float | None = None
@@ -421,11 +467,15 @@ class JointTuning:
 @dataclass(frozen=True)
 class Site:
     name: str
+    """MJCF site name, unique in the model (sensors refer to it)."""
     body: str
     """Link the site is attached to."""
     pos: Vec3 = (0.0, 0.0, 0.0)
+    """(3,) position in the ``body`` link frame, metres."""
     quat: Quat = (1.0, 0.0, 0.0, 0.0)
+    """Orientation in the ``body`` link frame, (w, x, y, z); the sensor axes."""
     type: Literal["sphere", "box"] = "sphere"
+    """MuJoCo site shape; with ``size``, the zone a touch sensor counts contacts in."""
     size: tuple[float, ...] = (0.005,)
     """MuJoCo site size (sphere radius; box half-extents), metres."""
 
@@ -433,8 +483,11 @@ class Site:
 @dataclass(frozen=True)
 class Camera:
     name: str
+    """MJCF camera name, unique in the model."""
     body: str
+    """Link the camera is attached to."""
     pos: Vec3
+    """(3,) position of the camera in the link frame, metres."""
     quat: Quat
     """MuJoCo camera frame in the link frame: looks along -z, +y up."""
     fovy: float
@@ -444,6 +497,7 @@ class Camera:
     depth: bool = False
     """True when the description asks for depth images too (RGBD)."""
     near: float | None = None
+    """Near clip distance from the description, metres, or None (see ``far``)."""
     far: float | None = None
     """Clip distances from the description, metres (reported; MuJoCo clips globally)."""
 
@@ -459,15 +513,22 @@ class Sensor:
     """One MuJoCo sensor element."""
 
     name: str
+    """MJCF sensor name, unique in the model."""
     type: str
     """MuJoCo sensor element: accelerometer, gyro, framequat, force, torque,
     rangefinder, touch, jointpos, jointvel, ..."""
     site: str | None = None
+    """Site it reads at (IMU, force/torque, rangefinder, touch); None otherwise."""
     joint: str | None = None
+    """Joint it reads (``jointpos``, ``jointvel``); None otherwise."""
     objtype: str | None = None
+    """Frame sensors: MuJoCo type of the object read, e.g. ``site``; else None."""
     objname: str | None = None
+    """Frame sensors: name of the object read; else None."""
     noise: float | None = None
+    """Noise stddev in the reading's unit (m/s^2, rad/s, N, N m, m); None: none."""
     cutoff: float | None = None
+    """Clamp on the reading, its unit (rangefinder: max range, m); None: none."""
 
 
 NoteKind = Literal[
@@ -481,9 +542,11 @@ class Note:
     """One line of the conversion report."""
 
     kind: NoteKind
+    """Category; ``warning``, ``repaired`` and ``decimated`` are shown without ``-v``."""
     element: str
     """What it concerns, e.g. ``link 'base'`` or ``mesh 'meshes/arm.stl'``."""
     message: str
+    """One sentence for the user, with units where it gives numbers."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -495,15 +558,23 @@ class Model:
     """
 
     robot: Robot
+    """The parsed URDF (URDF layer); passes after parse do not change it."""
     meshes: Mapping[tuple[Path, Vec3], LoadedMesh] = field(default_factory=dict)
     """Loaded mesh files keyed by (path, scale)."""
     mesh_assets: tuple[MeshAsset, ...] = ()
+    """Mesh files for ``assets/`` (visual and collision), each content stored once."""
     textures: tuple[TextureAsset, ...] = ()
+    """Texture images for ``assets/``, in order of first use."""
     materials: tuple[MaterialAsset, ...] = ()
+    """MJCF materials the visual geoms use, in order of first use."""
     visual_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
+    """Link name -> its visual geoms, placed in the link frame."""
     collision_geoms: Mapping[str, tuple[Geom, ...]] = field(default_factory=dict)
+    """Link name -> its collision geoms, placed in the link frame."""
     inertials: Mapping[str, BodyInertial | None] = field(default_factory=dict)
+    """Link name -> mass, COM and inertia; None for a massless body."""
     actuators: tuple[Actuator, ...] = ()
+    """In the document order of the joints they drive."""
     joint_tuning: Mapping[str, JointTuning] = field(default_factory=dict)
     """Joint name -> armature, damping, friction from actuator parameters."""
     home: Mapping[str, float] = field(default_factory=dict)
@@ -512,9 +583,13 @@ class Model:
     gravcomp: Mapping[str, float] = field(default_factory=dict)
     """Link name -> gravity compensation (0..1, MuJoCo body ``gravcomp``)."""
     sites: tuple[Site, ...] = ()
+    """Sites the sensors pass adds (emit adds frame sites for frame-only links)."""
     cameras: tuple[Camera, ...] = ()
+    """Cameras from the description's camera sensors."""
     sensors: tuple[Sensor, ...] = ()
+    """MJCF sensors, in the order emit writes them."""
     notes: tuple[Note, ...] = ()
+    """The conversion report so far, in the order the passes added them."""
 
     def sensor_bodies(self) -> frozenset[str]:
         """Links carrying the site of a :data:`BODY_SENSORS` sensor: merging one
