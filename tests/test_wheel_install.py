@@ -96,7 +96,9 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     (Path(purelib) / "_borrowed_deps.pth").write_text("\n".join(borrowed) + "\n")
     install = subprocess.run(
         [sys.executable, "-m", "pip", "--python", str(python), "install"]
-        + ["--no-deps", "--no-index", str(wheel)],
+        # --ignore-installed: the borrowed site-packages may hold mjcf-forge itself (a
+        # non-editable `pip install .`); pip must still put the wheel into the new venv.
+        + ["--no-deps", "--no-index", "--ignore-installed", str(wheel)],
         capture_output=True,
         text=True,
         timeout=600,
