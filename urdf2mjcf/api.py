@@ -7,6 +7,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from . import mjmodel
 from . import output as out
 from .errors import OutputError
 from .ir import Model
@@ -84,7 +85,12 @@ def make_options(
             strict=strict,
         ),
         parse=parse.ParseConfig(strict=strict, free_root=floating_base),
-        meshes=meshes.MeshConfig(max_faces=max_faces, strict_visual=strict),
+        meshes=meshes.MeshConfig(
+            max_faces=max_faces,
+            strict_visual=strict,
+            cache_dir=Path(cache_dir) if cache_dir else None,
+            use_cache=use_cache,
+        ),
         collision=collision.CollisionConfig(
             source=collision_source,  # type: ignore[arg-type]
             cache_dir=Path(cache_dir) if cache_dir else None,
@@ -114,6 +120,7 @@ def make_options(
 
 def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
     """Run passes 1-6 in memory: no file is written."""
+    mjmodel.make_room()  # before the first compile of this conversion
     doc = xacro.run(Path(source), options.xacro)
     model = parse.run(doc, options.parse)
     model = meshes.run(model, options.meshes)
@@ -163,7 +170,9 @@ def convert(
 
     def run_validation(staged: Path) -> None:
         staged_target = staged.with_name(check.name)
-        validated.append(validate.run(staged_target, options.validate, report_as=check))
+        validated.append(
+            validate.run(staged_target, options.validate, report_as=check, files=list(files))
+        )
 
     written = out.write_atomic(output, files, run_validation)
     robot = model.robot
@@ -180,4 +189,5 @@ def convert(
         files=tuple(written),
         notes=model.notes,
         model=model,
+        compiled=validated[0].model if validated and validated[0] else None,
     )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from .ir import Model, Note
 
@@ -24,6 +25,9 @@ class Report:
     notes: tuple[Note, ...]
     model: Model | None = field(default=None, repr=False, compare=False)
     """The final intermediate representation (inertials, geoms, assets per link)."""
+    compiled: Any = field(default=None, repr=False, compare=False)
+    """The ``mujoco.MjModel`` that validation compiled from the files written
+    (``scene.xml``, or the robot with ``scene=False``); None without validation."""
 
     def of_kind(self, kind: str) -> tuple[Note, ...]:
         return tuple(n for n in self.notes if n.kind == kind)

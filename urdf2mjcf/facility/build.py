@@ -142,7 +142,17 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
-        data = manifest(stage / "scene.xml", recipe, root, seed, moved, offsets, built, roles)
+        data = manifest(
+            stage / "scene.xml",
+            recipe,
+            root,
+            seed,
+            moved,
+            offsets,
+            built,
+            roles,
+            compiled=report.compiled,  # validation compiled this very scene.xml
+        )
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
         write_manifest(stage, data)

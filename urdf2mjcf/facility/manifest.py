@@ -106,10 +106,13 @@ def manifest(
     offsets: dict[str, dict[str, float]],
     components: dict[str, Path],
     roles: dict[str, dict] | None = None,
+    compiled: Any = None,
 ) -> dict:
+    """``compiled``: the model of ``scene`` the conversion validated, so it is not
+    compiled again (None: compiled here)."""
     import mujoco
 
-    m = mujoco.MjModel.from_xml_path(str(scene))
+    m = compiled if compiled is not None else mujoco.MjModel.from_xml_path(str(scene))
     obj = mujoco.mjtObj
     joints = [
         {

@@ -110,6 +110,7 @@ from .. import actuator_config, control_tags, servo_design
 from ..actuator_config import ActuatorFile, ActuatorSpec
 from ..errors import ValidationError
 from ..ir import Actuator, Joint, JointTuning, Model, Note, Robot
+from ..mjmodel import compile_home
 from ..servo_design import DesignParams, ServoRequest, ServoSystem
 from . import emit
 
@@ -421,14 +422,11 @@ def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSyste
         replace(model, actuators=(), sensors=()), emit.EmitConfig(floating_base=cfg.floating_base)
     )
     try:
-        m = mujoco.MjModel.from_xml_string(result.xml.decode(), dict(result.files))
+        m, d = compile_home(result.xml, result.files)
     except ValueError as exc:
         raise ValidationError(
             f"MuJoCo rejected the model while sizing actuator gains: {exc}", file=robot.source
         ) from None
-    d = mujoco.MjData(m)
-    if m.nkey:
-        mujoco.mj_resetDataKeyframe(m, d, 0)
     mujoco.mj_forward(m, d)
     full = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, full)

@@ -14,6 +14,7 @@ import math
 import numpy as np
 from lxml import etree
 
+from ..mjmodel import compile_home
 from .emit import EmitResult, _set
 
 
@@ -21,10 +22,7 @@ def lowest_point(result: EmitResult) -> float | None:
     """World z of the lowest collision geometry at the home keyframe (None: no geoms)."""
     import mujoco
 
-    m = mujoco.MjModel.from_xml_string(result.xml.decode(), dict(result.files))
-    d = mujoco.MjData(m)
-    if m.nkey:
-        mujoco.mj_resetDataKeyframe(m, d, 0)
+    m, d = compile_home(result.xml, result.files, shape_only=True)
     mujoco.mj_kinematics(m, d)
     colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
     geoms = colliding or list(range(m.ngeom))

@@ -3,28 +3,31 @@
 One ``.npz`` file per decomposition, named by a key that hashes everything the
 result depends on: the mesh (its content hash and the exact arrays handed to
 CoACD), the CoACD parameters, the versions of coacd, trimesh and numpy, and
-:data:`CACHE_FORMAT`. Files are written to a temporary name and moved into
-place with ``os.replace`` (temporary names from ``mkstemp``, unique across
-processes), so concurrent conversions sharing one cache only ever see whole
-files. An entry that is truncated, garbage or inconsistent is a miss: the
-result is computed again and the entry rewritten. Nothing here is ever fatal.
+:data:`CACHE_FORMAT`. Reading and writing go through :mod:`urdf2mjcf.cache`,
+shared with the mesh cache: files are written to a temporary name and moved
+into place with ``os.replace``, so concurrent conversions sharing one cache
+only ever see whole files, and the folder is held to its size bound. An entry
+that is truncated, garbage or inconsistent is a miss: the result is computed
+again and the entry rewritten. Nothing here is ever fatal.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
 import logging
 import math
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
+from ...cache import default_cache_dir, make_key, read_entry, write_entry
 from ...ir import MeshData
+
+__all__ = ["DecompositionCache", "array_digest", "cache_key", "default_cache_dir"]
 
 logger = logging.getLogger(__name__)
 
@@ -35,16 +38,7 @@ _SUBDIR = "coacd"
 _GAP_SUBDIR = "hull_gap"
 
 
-def default_cache_dir() -> Path:
-    """``$URDF2MJCF_CACHE``, else ``$XDG_CACHE_HOME/urdf2mjcf``, else ``~/.cache/urdf2mjcf``."""
-    explicit = os.environ.get("URDF2MJCF_CACHE")
-    if explicit:
-        return Path(explicit).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "urdf2mjcf"
-
-
+@functools.cache  # importlib.metadata reads the disk: once per process, not once per mesh
 def _versions() -> dict[str, str]:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -76,7 +70,7 @@ def cache_key(mesh_sha256: str, data_sha256: str, params: Mapping[str, object]) 
         "params": dict(params),
         "versions": _versions(),
     }
-    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+    return make_key(payload)
 
 
 class DecompositionCache:
@@ -91,12 +85,8 @@ class DecompositionCache:
     def load(self, key: str) -> list[MeshData] | None:
         """The stored parts, or None when absent, unreadable or inconsistent."""
         path = self.path(key)
-        try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            return None
-        except OSError as exc:
-            logger.warning("cannot read cache entry %s: %s", path, exc)
+        data = read_entry(path)
+        if data is None:
             return None
         try:
             return _decode(data, key)
@@ -116,43 +106,26 @@ class DecompositionCache:
             arrays[f"v{i}"] = np.ascontiguousarray(part.vertices, dtype="<f8")
             arrays[f"f{i}"] = np.ascontiguousarray(part.faces, dtype="<i8")
         np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub confuses **kwds with allow_pickle
-        self._write(self.dir, f"{key}.npz", buf.getvalue())
+        write_entry(self.dir, f"{key}.npz", buf.getvalue())
 
     def load_gap(self, key: str) -> float | None:
         """A stored hull gap (the convexity test is the slow part of a warm run)."""
+        raw = read_entry(self.dir.parent / _GAP_SUBDIR / f"{key}.json")
+        if raw is None:
+            return None
         try:
-            data = json.loads((self.dir.parent / _GAP_SUBDIR / f"{key}.json").read_bytes())
+            data = json.loads(raw)
             gap = float(data["gap"]) if data.get("key") == key else math.nan
         except Exception:  # absent, truncated or garbage: a miss, rebuilt
             return None
         return gap if math.isfinite(gap) and gap >= 0.0 else None
 
     def store_gap(self, key: str, gap: float) -> None:
-        self._write(
+        write_entry(
             self.dir.parent / _GAP_SUBDIR,
             f"{key}.json",
             json.dumps({"key": key, "gap": gap}).encode(),
         )
-
-    @staticmethod
-    def _write(folder: Path, name: str, data: bytes) -> None:
-        """Temp file then os.replace: readers only ever see whole files. Failures are logged."""
-        tmp_name = None
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{name[:16]}.", suffix=".tmp")
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-            os.replace(tmp_name, folder / name)
-            tmp_name = None
-        except OSError as exc:
-            logger.warning("cannot write cache entry in %s: %s", folder, exc)
-        finally:
-            if tmp_name is not None:
-                try:
-                    os.unlink(tmp_name)
-                except OSError:
-                    pass
 
 
 def _decode(data: bytes, key: str) -> list[MeshData]:

@@ -20,6 +20,10 @@ flips v itself when it loads an OBJ, so images appear the right way up.
 Flat or tiny meshes (a textured quad, a thin decal) are kept: MuJoCo 4.0
 rejects them ("mesh volume is too small") even on massless visual geoms
 unless the ``<mesh>`` asset has ``inertia="shell"``, which emit must write.
+
+What loading a file gives (parts, merged mesh, its materials and textures,
+notes) is kept in the disk cache (:mod:`.cache`), keyed by the
+file's bytes and the options, so a warm conversion decodes no mesh twice.
 """
 
 from __future__ import annotations
@@ -35,10 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import assets
-from ..errors import MeshError
-from ..geometry import primitive_geom
-from ..ir import (
+from ... import assets
+from ...cache import default_cache_dir
+from ...errors import MeshError
+from ...geometry import primitive_geom
+from ...ir import (
     RGBA,
     Geom,
     LoadedMesh,
@@ -54,7 +59,8 @@ from ..ir import (
     Vec3,
     Visual,
 )
-from ..transforms import quat_from_rpy, vec3
+from ...transforms import quat_from_rpy, vec3
+from . import cache as mesh_cache
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +74,10 @@ class MeshConfig:
     """MuJoCo's STL reader refuses more faces than this; larger meshes are decimated."""
     strict_visual: bool = False
     """A missing or unusable visual mesh is an error, not a warning that drops it."""
+    cache_dir: Path | None = None
+    """None: the default cache folder (see :func:`urdf2mjcf.cache.default_cache_dir`)."""
+    use_cache: bool = True
+    """Read and write loaded meshes in the disk cache."""
 
 
 class _Unusable(Exception):
@@ -90,6 +100,7 @@ def run(model: Model, cfg: MeshConfig) -> Model:
     failed: dict[Key, _Unusable] = {}
     palette: Palette = {}
     notes = list(model.notes)
+    cache = _open_cache(cfg)
 
     # Load in document order: link by link, visuals then collisions.
     for link in robot.links:
@@ -99,7 +110,7 @@ def run(model: Model, cfg: MeshConfig) -> Model:
                 if not isinstance(ref, MeshRef):
                     continue
                 where = f"link '{link.name}' {role} mesh '{ref.filename}'"
-                problem = _ensure_loaded(ref, cfg, meshes, failed, palette, notes)
+                problem = _ensure_loaded(ref, cfg, cache, meshes, failed, palette, notes)
                 if problem is None:
                     continue
                 if role == "collision" or cfg.strict_visual or problem.fatal:
@@ -152,6 +163,9 @@ class _Assets:
     textures: dict[str, TextureAsset]
     pending: dict[str, MeshAsset] = field(default_factory=dict)
     """New mesh assets by provisional name, merged once at the end (each merge is O(n))."""
+    made: dict[tuple[str, str, int, bool], MeshAsset] = field(default_factory=dict)
+    """Assets by (content hash, stem, part, with UVs): a mesh several visuals use
+    (left and right links) is encoded once."""
 
     def use(self, material: MaterialAsset, texture: TextureAsset | None) -> str:
         self.materials.setdefault(material.name, material)
@@ -164,7 +178,17 @@ class _Assets:
         return asset.name
 
 
-def _ensure_loaded(ref, cfg, meshes, failed, palette, notes) -> _Unusable | None:
+def _open_cache(cfg: MeshConfig) -> mesh_cache.MeshCache | None:
+    if not cfg.use_cache:
+        return None
+    try:
+        return mesh_cache.MeshCache(cfg.cache_dir or default_cache_dir())
+    except RuntimeError as exc:  # no home directory to keep it in: work without one
+        log.warning("no mesh cache: %s", exc)
+        return None
+
+
+def _ensure_loaded(ref, cfg, cache, meshes, failed, palette, notes) -> _Unusable | None:
     """Load ``ref`` into ``meshes`` unless already tried; the problem, or None."""
     if ref.path is None:
         return _Unusable("cannot be resolved to a file (unknown package or bad path)")
@@ -173,7 +197,7 @@ def _ensure_loaded(ref, cfg, meshes, failed, palette, notes) -> _Unusable | None
         return None
     if key not in failed:
         try:
-            loaded, found, messages = _load(ref.path, ref.scale, cfg)
+            loaded, found, messages = _load(ref.path, ref.scale, cfg, cache)
         except _Unusable as exc:
             failed[key] = exc
         else:
@@ -186,7 +210,7 @@ def _ensure_loaded(ref, cfg, meshes, failed, palette, notes) -> _Unusable | None
 
 
 def _load(
-    path: Path, scale: Vec3, cfg: MeshConfig
+    path: Path, scale: Vec3, cfg: MeshConfig, cache: mesh_cache.MeshCache | None = None
 ) -> tuple[LoadedMesh, Palette, list[tuple[str, str]]]:
     """One mesh file in metres, split by material, cleaned and within the face limit."""
     ext = path.suffix.lower()
@@ -204,16 +228,68 @@ def _load(
     if ext not in FORMATS:
         raise _Unusable(f"unsupported mesh format '{path.suffix}'; supported: {', '.join(FORMATS)}")
 
+    digest = hashlib.sha256(data + repr(tuple(float(s) for s in scale)).encode()).hexdigest()
+    stem = assets.safe_stem(path.stem)
+    if cache is None:
+        entry = _decode(path, data, ext, stem, scale, cfg)
+    else:
+        key = mesh_cache.cache_key(digest, ext, stem, scale, cfg.max_faces)
+        found = cache.load(key, functools.partial(_side_file, path))
+        if found is None:
+            entry = _decode(path, data, ext, stem, scale, cfg)
+            cache.store(key, entry)
+        else:
+            entry = found
+    loaded = LoadedMesh(
+        path=path, scale=scale, parts=entry.parts, merged=entry.merged, sha256=digest
+    )
+    return loaded, dict(entry.palette), list(entry.notes)
+
+
+def _side_file(path: Path, name: str) -> bytes | None:
+    """A file the decoder of ``path`` reads besides it (a texture, an ``.mtl``), found
+    as trimesh finds it; None where it cannot (missing, unreadable)."""
+    try:
+        return _resolver(path).get(name)
+    except Exception:  # as the decoder saw it: no file
+        return None
+
+
+def _resolver(path: Path, log: dict[str, str | None] | None = None):
+    """trimesh's resolver for ``path``'s side files; with ``log``, recording each file
+    read (name -> sha256 of its bytes, None when it could not be read)."""
+    import trimesh
+
+    class Recording(trimesh.resolvers.FilePathResolver):
+        def get(self, name: str):
+            try:
+                data = super().get(name)
+            except Exception:
+                if log is not None:
+                    log.setdefault(name, None)
+                raise
+            if log is not None:
+                log.setdefault(name, hashlib.sha256(data).hexdigest())
+            return data
+
+    # ROS meshes often reference '../textures/x.png'; trimesh 5 refuses that by default
+    return Recording(str(path), allow_anywhere=True)
+
+
+def _decode(
+    path: Path, data: bytes, ext: str, stem: str, scale: Vec3, cfg: MeshConfig
+) -> mesh_cache.Entry:
+    """Decode, split by material, clean and decimate (the work the cache saves)."""
     import trimesh  # heavy; only this pass needs it
 
     notes: list[tuple[str, str]] = []
+    side_files: dict[str, str | None] = {}
     try:
         source = _unbind_broken_materials(data, notes) if ext == ".dae" else data
         scene = trimesh.load_scene(
             io.BytesIO(source),
             file_type=ext[1:],
-            # ROS meshes often reference '../textures/x.png'; trimesh 5 refuses that by default
-            resolver=trimesh.resolvers.FilePathResolver(str(path), allow_anywhere=True),
+            resolver=_resolver(path, side_files),
             process=False,
         )
     except Exception as exc:  # trimesh and pycollada raise anything on bad input
@@ -221,7 +297,6 @@ def _load(
 
     unit = _collada_unit(data) if ext == ".dae" else 1.0
     linear = np.diag(np.asarray(scale, dtype=float) * unit)
-    stem = assets.safe_stem(path.stem)
     groups: dict[str | None, list[MeshData]] = {}
     palette: Palette = {}
     for node in scene.graph.nodes_geometry:
@@ -256,10 +331,14 @@ def _load(
         raise _Unusable(f"{path} contains no usable triangles")
     merged = _clean(_concat([p.mesh for p in parts], keep_uv=False))
     merged = _decimate(merged, cfg.max_faces, "all parts together", notes)
-    digest = hashlib.sha256(data + repr(tuple(float(s) for s in scale)).encode()).hexdigest()
-    loaded = LoadedMesh(path=path, scale=scale, parts=tuple(parts), merged=merged, sha256=digest)
     used = {p.material for p in parts}
-    return loaded, {k: v for k, v in palette.items() if k in used}, notes
+    return mesh_cache.Entry(
+        parts=tuple(parts),
+        merged=merged,
+        palette={k: v for k, v in palette.items() if k in used},
+        notes=tuple(notes),
+        deps=tuple(side_files.items()),
+    )
 
 
 def _unbind_broken_materials(data: bytes, notes: list[tuple[str, str]]) -> bytes:
@@ -414,9 +493,12 @@ def _mesh_geoms(
             material = urdf_mat[0] if mesh.uv is not None else urdf_mat[1]
         if mesh.uv is not None and (material is None or material[1] is None):
             mesh = MeshData(mesh.vertices, mesh.faces)  # untextured: STL, not OBJ
-        name = out.add_mesh(
-            assets.mesh_asset(stem if len(loaded.parts) == 1 else f"{stem}_{i}", mesh)
-        )
+        made = (loaded.sha256, stem, i, mesh.uv is not None)
+        if made not in out.made:
+            out.made[made] = assets.mesh_asset(
+                stem if len(loaded.parts) == 1 else f"{stem}_{i}", mesh
+            )
+        name = out.add_mesh(out.made[made])
         geoms.append(
             Geom(
                 role="visual",

@@ -1,0 +1,125 @@
+"""Compiling our MJCF with MuJoCo: one helper for every pass that needs a model.
+
+A conversion compiles up to four documents, each different: the robot
+without actuators (actuators: gains depend on the robot's dynamics), the
+merged ``<mujoco>`` extension without keyframes (extension), the finished
+robot (scene: where the floor goes) and ``scene.xml`` around it (validate).
+The scene pass needs only where bodies and geoms are at home, which the
+actuators pass's model already says when the documents differ only in
+actuators, sensors, sites and cameras: then it is reused, not compiled again
+(:func:`compile_home` with ``shape_only``). The rest share the mesh work:
+MuJoCo caches processed mesh assets per process, keyed by asset name and
+content, so every compile here goes through memory with the same relative
+names (``assets/<name>``) and after the first the others skip decoding and
+processing meshes (compiling a robot's scene after the robot takes a third
+of the time).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from typing import Any
+
+LOCK = threading.RLock()
+"""MuJoCo's user warning callback is process-global: whoever sets it holds this
+(re-entrant: validation holds it while it compiles and steps)."""
+
+
+def compile_xml(xml: bytes | str, files: Mapping[str, bytes], warnings: list[str] | None = None):
+    """``mujoco.MjModel`` of ``xml`` with ``files`` (relative names) as its assets.
+
+    Raises MuJoCo's ``ValueError``. Warnings MuJoCo gives while compiling are
+    appended to ``warnings`` (they are dropped when it is None).
+    """
+    import mujoco
+
+    text = xml.decode() if isinstance(xml, bytes) else xml
+    sink = warnings if warnings is not None else []
+    with LOCK:
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(lambda msg: sink.append(str(msg).strip()))
+        try:
+            return mujoco.MjModel.from_xml_string(text, dict(files))
+        finally:
+            mujoco.set_mju_user_warning(previous)
+
+
+_last: tuple[bytes, dict[str, bytes], Any] | None = None
+"""(shape, files, model) of the last :func:`compile_home` in this process."""
+
+
+def make_room() -> None:
+    """Keep MuJoCo's asset cache from staying full; call before a conversion compiles.
+
+    Once full it caches nothing more (it evicts only when its capacity is
+    lowered): after some 30 robots converted in one process every compile
+    would pay for its meshes again. Past half full, lowering the capacity to
+    half and back drops the least used entries and leaves room for this
+    conversion's meshes. Not before each compile: the entries dropped first
+    are the ones used least, which a conversion's first compile just added.
+    """
+    import mujoco
+
+    global _last
+    with LOCK:
+        _last = None  # another conversion: no model of the last one is kept alive
+    get_cache = getattr(mujoco, "mj_getCache", None)  # a MuJoCo without it: nothing to do
+    if get_cache is None:
+        return
+    cache = get_cache()
+    capacity = mujoco.mj_getCacheCapacity(cache)
+    if mujoco.mj_getCacheSize(cache) > capacity // 2:
+        mujoco.mj_setCacheCapacity(cache, capacity // 2)
+        mujoco.mj_setCacheCapacity(cache, capacity)
+
+
+def home_data(m) -> Any:
+    """``mujoco.MjData`` of ``m`` at its first keyframe (our ``home``), if it has one."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    if m.nkey:
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+    return d
+
+
+def compile_home(
+    xml: bytes | str, files: Mapping[str, bytes], *, shape_only: bool = False
+) -> tuple[Any, Any]:
+    """(model, data at home) of ``xml`` with ``files``; raises MuJoCo's ``ValueError``.
+
+    ``shape_only``: the caller reads only where bodies and geoms are at home.
+    The model of the previous call is returned when its document had the same
+    :func:`shape` and the same files, instead of compiling this one.
+    """
+    global _last
+    key = shape(xml)
+    with LOCK:
+        last = _last
+    if shape_only and last is not None and last[0] == key and last[1] == files:
+        m = last[2]
+    else:
+        m = compile_xml(xml, files)
+    with LOCK:
+        _last = (key, dict(files), m)
+    return m, home_data(m)
+
+
+def shape(xml: bytes | str) -> bytes:
+    """The document without what moves or shapes nothing: actuators, sensors,
+    ``<visual>``, sites, cameras, the model name and the keyframes' controls.
+    Two documents of one shape put every body and geom in the same place."""
+    from lxml import etree
+
+    data = xml if isinstance(xml, bytes) else xml.encode()
+    root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True, huge_tree=True))
+    root.attrib.pop("model", None)
+    for tag in ("actuator", "sensor", "visual"):
+        for el in root.findall(tag):
+            root.remove(el)
+    for el in list(root.iter("site", "camera")):
+        el.getparent().remove(el)
+    for key in root.iter("key"):
+        key.attrib.pop("ctrl", None)
+    return etree.tostring(root)
