@@ -143,9 +143,9 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option(
     "--cache-dir",
     type=click.Path(path_type=Path, file_okay=False),
-    help="Where convex decompositions are cached.",
+    help="Cache folder: loaded meshes and convex decompositions (see 'urdf2mjcf cache info').",
 )
-@click.option("--no-cache", is_flag=True, help="Neither read nor write the decomposition cache.")
+@click.option("--no-cache", is_flag=True, help="Neither read nor write the cache.")
 @click.option(
     "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
 )
@@ -270,7 +270,9 @@ def _add_debug_option(command: click.Command) -> None:
         )
 
 
-def run_command(command: click.Command, args: list[str] | None = None) -> None:
+def run_command(
+    command: click.Command, args: list[str] | None = None, prog_name: str | None = None
+) -> None:
     """Run ``command`` so that every failure is one ``error:`` line on stderr.
 
     Bad input or usage: exit code 2. A ``ConversionError`` is the usual path for
@@ -279,9 +281,12 @@ def run_command(command: click.Command, args: list[str] | None = None) -> None:
     """
     headless.configure()  # before anything imports mujoco: cameras render without a display
     _add_debug_option(command)
+    if isinstance(command, click.Group):  # `urdf2mjcf cache info --debug`
+        for sub in command.commands.values():
+            _add_debug_option(sub)
     debug = "--debug" in (sys.argv[1:] if args is None else args)
     try:
-        command.main(args=args, standalone_mode=False)
+        command.main(args=args, prog_name=prog_name, standalone_mode=False)
     except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
         logging.getLogger(__name__).debug("%s failed", command.name, exc_info=True)
         if debug:
@@ -320,7 +325,72 @@ def run_command(command: click.Command, args: list[str] | None = None) -> None:
 
 
 def urdf2mjcf_main() -> None:
+    # `urdf2mjcf cache ...` manages the cache; anything else is a conversion, whose
+    # first argument is the SOURCE file (a file named 'cache' is given as ./cache).
+    args = sys.argv[1:]
+    if args[:1] == ["cache"]:
+        run_command(cache_group, args[1:], prog_name="urdf2mjcf cache")
     run_command(urdf2mjcf_command)
+
+
+_CACHE_DIR_OPTION = click.option(
+    "--cache-dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    help="The cache folder (default: $URDF2MJCF_CACHE, else $XDG_CACHE_HOME/urdf2mjcf, "
+    "else ~/.cache/urdf2mjcf).",
+)
+
+
+def _cache_root(cache_dir: Path | None) -> Path:
+    from .cache import default_cache_dir
+
+    if cache_dir is not None:
+        return cache_dir
+    try:
+        return default_cache_dir()
+    except RuntimeError as exc:  # no home directory
+        raise click.UsageError(
+            f"no default cache folder ({exc}); name one with --cache-dir"
+        ) from None
+
+
+def _mb(n: int) -> str:
+    return f"{n / 2**20:.1f} MB"
+
+
+@click.group("urdf2mjcf cache", context_settings={"help_option_names": ["-h", "--help"]})
+def cache_group() -> None:
+    """Show or empty the cache of loaded meshes and convex decompositions.
+
+    Conversions share one cache folder; entries are named by the content they
+    depend on, so they never go stale. It is held to $URDF2MJCF_CACHE_MAX_MB
+    (default 2048; 0 for no bound), least recently used entries going first.
+    """
+
+
+@cache_group.command("info")
+@_CACHE_DIR_OPTION
+def cache_info_command(cache_dir: Path | None) -> None:
+    """Where the cache is, its entries and their size by kind."""
+    from . import cache
+
+    info = cache.info(_cache_root(cache_dir))
+    click.echo(f"cache: {info.root}" + ("" if info.root.is_dir() else " (not created yet)"))
+    for k in info.kinds:
+        click.echo(f"  {k.description} ({k.kind}/): {k.entries} entries, {_mb(k.bytes)}")
+    limit = "none" if info.limit is None else _mb(info.limit)
+    click.echo(f"total: {info.entries} entries, {_mb(info.bytes)} (limit {limit})")
+
+
+@cache_group.command("clear")
+@_CACHE_DIR_OPTION
+def cache_clear_command(cache_dir: Path | None) -> None:
+    """Delete every cache entry (files in the folder that are not entries stay)."""
+    from . import cache
+
+    root = _cache_root(cache_dir)
+    count, size = cache.clear(root)
+    click.echo(f"removed {count} entries, {_mb(size)}, from {root}")
 
 
 DEFAULT_RECIPE = "recipes/imetro.yaml"
@@ -363,7 +433,7 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
 @click.option(
     "--cache-dir",
     type=click.Path(path_type=Path, file_okay=False),
-    help="Where convex decompositions are cached.",
+    help="Cache folder: loaded meshes and convex decompositions (see 'urdf2mjcf cache info').",
 )
 @click.option(
     "--demo", is_flag=True, help="Then replay the logistics demo in it (see facility-demo)."
