@@ -11,9 +11,9 @@ no actuator file and no ``--gravcomp`` is returned unchanged.
 1. documented defaults (below);
 2. the URDF: ``<ros2_control>`` command interfaces and parameters, else a ROS 1
    ``<transmission>`` (a joint in both takes ros2_control's; see
-   :mod:`urdf2mjcf.control_tags` for the tags read);
+   :mod:`.tags` for the tags read);
 3. the actuator file ``--actuator-config FILE`` (schema in
-   :mod:`urdf2mjcf.actuator_config`), whose ``joints`` patterns (``fnmatch``,
+   :mod:`.config`), whose ``joints`` patterns (``fnmatch``,
    case-sensitive) can also actuate joints the URDF leaves bare.
 
 Command interface ``position`` gives a ``<position>`` servo, ``velocity`` a
@@ -106,13 +106,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import actuator_config, control_tags, servo_design
-from ..actuator_config import ActuatorFile, ActuatorSpec
-from ..errors import ValidationError
-from ..ir import Actuator, Joint, JointTuning, Model, Note, Robot
-from ..mjmodel import compile_home
-from ..servo_design import DesignParams, ServoRequest, ServoSystem
-from . import emit
+from ...errors import ValidationError
+from ...ir import Actuator, Joint, JointTuning, Model, Note, Robot
+from ...mjmodel import compile_home
+from .. import emit
+from . import config as actuator_config
+from . import servo as servo_design
+from . import tags as control_tags
+from .config import ActuatorFile, ActuatorSpec
+from .servo import DesignParams, ServoRequest, ServoSystem
 
 _GLOB = set("*?[")
 _ACTUATABLE = ("revolute", "continuous", "prismatic")
@@ -121,7 +123,7 @@ _ACTUATABLE = ("revolute", "continuous", "prismatic")
 @dataclass(frozen=True)
 class ActuatorConfig:
     config_file: Path | None = None
-    """The actuator file (``--actuator-config``); see :mod:`urdf2mjcf.actuator_config`."""
+    """The actuator file (``--actuator-config``); see :mod:`.config`."""
     gravcomp: bool = False
     """``--gravcomp``: gravcomp = 1 on every link a non-fixed joint moves."""
     bandwidth_hz: float = 10.0

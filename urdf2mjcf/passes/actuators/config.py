@@ -55,8 +55,8 @@ from typing import Any
 
 import yaml
 
-from . import schema
-from .errors import InputError
+from ... import schema
+from ...errors import InputError
 
 ACTUATOR_TYPES = ("position", "velocity", "motor", "none")
 _TYPE_ALIASES = {"effort": "motor"}

@@ -37,9 +37,9 @@ from dataclasses import dataclass, replace
 
 from lxml import etree
 
-from .actuator_config import ActuatorSpec
-from .errors import URDFError
-from .ir import Note, Robot
+from ...errors import URDFError
+from ...ir import Note, Robot
+from .config import ActuatorSpec
 
 _INTERFACE_KIND = {"position": "position", "velocity": "velocity", "effort": "motor"}
 _PREFERENCE = ("position", "velocity", "motor")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ir import Note
+from ...ir import Note
 
 
 @dataclass(frozen=True, eq=False)
