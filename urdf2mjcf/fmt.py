@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from lxml import etree
+
 
 def fmt_float(x: float) -> str:
     x = float(x)
@@ -23,3 +25,17 @@ def fmt_float(x: float) -> str:
 
 def fmt_vec(values: Iterable[float]) -> str:
     return " ".join(fmt_float(v) for v in values)
+
+
+def set_attrs(el: etree._Element, **attrs: object) -> etree._Element:
+    """Set MJCF attributes on ``el`` with the one formatter; None values are skipped."""
+    for key, value in attrs.items():
+        if value is None:
+            continue
+        if isinstance(value, str):
+            el.set(key, value)
+        elif isinstance(value, (int, float)):
+            el.set(key, fmt_float(value))
+        else:
+            el.set(key, fmt_vec(value))  # type: ignore[arg-type]
+    return el

@@ -17,7 +17,7 @@ import numpy as np
 from lxml import etree
 
 from ..errors import ValidationError
-from ..fmt import fmt_float, fmt_vec
+from ..fmt import set_attrs
 from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
 from ..transforms import (
     IDENTITY_QUAT,
@@ -198,19 +198,6 @@ def _fuse(parent: _Body, child: _Body) -> None:
 # -- XML ---------------------------------------------------------------------
 
 
-def _set(el: etree._Element, **attrs: object) -> etree._Element:
-    for key, value in attrs.items():
-        if value is None:
-            continue
-        if isinstance(value, str):
-            el.set(key, value)
-        elif isinstance(value, (int, float)):
-            el.set(key, fmt_float(value))
-        else:
-            el.set(key, fmt_vec(value))  # type: ignore[arg-type]
-    return el
-
-
 def _pose_attrs(pos: Vec3, quat: Quat) -> dict[str, object]:
     return {
         "pos": pos if any(pos) else None,
@@ -265,16 +252,18 @@ def _joint_elements(
     if joint.type in ("revolute", "continuous", "prismatic"):
         rng = _limits(joint, model.robot.source, notes)
         el = etree.SubElement(body_el, "joint")
-        _set(el, name=joint.name)
+        set_attrs(el, name=joint.name)
         if joint.type == "prismatic":
             el.set("type", "slide")
-        _set(el, axis=axis, range=rng, **common)
+        set_attrs(el, axis=axis, range=rng, **common)
         actuator = actuators.get(joint.name)
         effort = joint.limit.effort if joint.limit is not None else None
         if actuator is not None and actuator.forcerange is not None:
-            _set(el, actuatorfrcrange=actuator.forcerange)  # a configured limit beats the URDF's
+            set_attrs(
+                el, actuatorfrcrange=actuator.forcerange
+            )  # a configured limit beats the URDF's
         elif effort is not None and effort > 0:
-            _set(el, actuatorfrcrange=(-effort, effort))
+            set_attrs(el, actuatorfrcrange=(-effort, effort))
         if actuator is not None and model.gravcomp:
             # gravity compensation as the controller's feed-forward, within its force limit
             el.set("actuatorgravcomp", "true")
@@ -282,12 +271,12 @@ def _joint_elements(
         return [(joint.name, "scalar", home)]
     if joint.type == "floating":
         if at_world:
-            _set(etree.SubElement(body_el, "freejoint"), name=joint.name)
+            set_attrs(etree.SubElement(body_el, "freejoint"), name=joint.name)
             return [(joint.name, "free", 0.0)]
         # Free joints are only allowed on top-level bodies: three slides and a ball.
         out = []
         for suffix, unit in (("x", (1, 0, 0)), ("y", (0, 1, 0)), ("z", (0, 0, 1))):
-            _set(
+            set_attrs(
                 etree.SubElement(body_el, "joint"),
                 name=f"{joint.name}_{suffix}",
                 type="slide",
@@ -295,13 +284,17 @@ def _joint_elements(
                 **common,
             )
             out.append((f"{joint.name}_{suffix}", "scalar", 0.0))
-        _set(etree.SubElement(body_el, "joint"), name=f"{joint.name}_rot", type="ball", **common)
+        set_attrs(
+            etree.SubElement(body_el, "joint"), name=f"{joint.name}_rot", type="ball", **common
+        )
         return out + [(f"{joint.name}_rot", "ball", 0.0)]
     if joint.type == "spherical":
         upper = joint.limit.upper if joint.limit is not None else None
         # A ball's range bounds its rotation angle: MuJoCo wants "0 max".
         rng = (0.0, upper) if upper is not None and upper > 0 else None
-        _set(etree.SubElement(body_el, "joint"), name=joint.name, type="ball", range=rng, **common)
+        set_attrs(
+            etree.SubElement(body_el, "joint"), name=joint.name, type="ball", range=rng, **common
+        )
         return [(joint.name, "ball", 0.0)]
     if joint.type == "planar":
         n = np.array(axis)
@@ -310,7 +303,7 @@ def _joint_elements(
         v = np.cross(n, u)
         out = []
         for suffix, direction, kind in (("x", u, "slide"), ("y", v, "slide"), ("rot", n, "hinge")):
-            _set(
+            set_attrs(
                 etree.SubElement(body_el, "joint"),
                 name=f"{joint.name}_{suffix}",
                 type=kind,
@@ -324,14 +317,14 @@ def _joint_elements(
 
 def _geom_element(parent: etree._Element, g: Geom) -> None:
     el = etree.SubElement(parent, "geom")
-    _set(el, name=g.name, **{"class": g.role})
-    _set(el, type=g.type if g.type != "sphere" else None)
+    set_attrs(el, name=g.name, **{"class": g.role})
+    set_attrs(el, type=g.type if g.type != "sphere" else None)
     if g.type == "mesh":
-        _set(el, mesh=g.mesh)
+        set_attrs(el, mesh=g.mesh)
     else:
-        _set(el, size=g.size)
-    _set(el, **_pose_attrs(g.pos, g.quat))
-    _set(el, material=g.material, rgba=g.rgba)
+        set_attrs(el, size=g.size)
+    set_attrs(el, **_pose_attrs(g.pos, g.quat))
+    set_attrs(el, material=g.material, rgba=g.rgba)
 
 
 def _body_contents(el: etree._Element, body: _Body) -> None:
@@ -340,11 +333,11 @@ def _body_contents(el: etree._Element, body: _Body) -> None:
         _geom_element(el, g)
     for site in body.sites:
         size = site.size if site.size != Site.size else None  # MuJoCo's default site size
-        _set(etree.SubElement(el, "site"), name=site.name, **_pose_attrs(site.pos, site.quat))
-        _set(el[-1], type=site.type if site.type != "sphere" else None, size=size)
+        set_attrs(etree.SubElement(el, "site"), name=site.name, **_pose_attrs(site.pos, site.quat))
+        set_attrs(el[-1], type=site.type if site.type != "sphere" else None, size=size)
     for cam in body.cameras:
-        _set(etree.SubElement(el, "camera"), name=cam.name, **_pose_attrs(cam.pos, cam.quat))
-        _set(
+        set_attrs(etree.SubElement(el, "camera"), name=cam.name, **_pose_attrs(cam.pos, cam.quat))
+        set_attrs(
             el[-1],
             fovy=cam.fovy,
             resolution=cam.resolution,
@@ -355,11 +348,11 @@ def _body_contents(el: etree._Element, body: _Body) -> None:
 def _inertial_element(parent: etree._Element, inertial: BodyInertial) -> None:
     el = etree.SubElement(parent, "inertial")
     ixx, iyy, izz, ixy, ixz, iyz = inertial.fullinertia
-    _set(el, pos=inertial.pos, mass=inertial.mass)
+    set_attrs(el, pos=inertial.pos, mass=inertial.mass)
     if ixy == ixz == iyz == 0.0:
-        _set(el, diaginertia=(ixx, iyy, izz))
+        set_attrs(el, diaginertia=(ixx, iyy, izz))
     else:
-        _set(el, fullinertia=inertial.fullinertia)
+        set_attrs(el, fullinertia=inertial.fullinertia)
 
 
 def _body_elements(
@@ -374,7 +367,9 @@ def _body_elements(
     while stack:
         parent, body, at_world = stack.pop()
         el = etree.SubElement(parent, "body")
-        _set(el, name=body.name, **_pose_attrs(body.pos, body.quat), gravcomp=body.gravcomp or None)
+        set_attrs(
+            el, name=body.name, **_pose_attrs(body.pos, body.quat), gravcomp=body.gravcomp or None
+        )
         if body.inertial is not None:
             _inertial_element(el, body.inertial)
         qpos.extend(
@@ -409,14 +404,14 @@ def _actuator_section(mj: etree._Element, default: etree._Element, model: Model)
         cls = etree.SubElement(default, "default")
         cls.set("class", name)
         for kind, attrs in kinds.items():
-            _set(etree.SubElement(cls, kind), **attrs)
+            set_attrs(etree.SubElement(cls, kind), **attrs)
     section = etree.SubElement(mj, "actuator")
     for a in model.actuators:
         inherited = classes.get(a.actuator_class or "", {}).get(a.kind, {})
         attrs = {k: v for k, v in _actuator_attrs(a).items() if inherited.get(k) != v}
         el = etree.SubElement(section, a.kind)
-        _set(el, name=a.name, **({"class": a.actuator_class} if a.actuator_class else {}))
-        _set(el, joint=a.joint, ctrlrange=a.ctrlrange, **attrs)
+        set_attrs(el, name=a.name, **({"class": a.actuator_class} if a.actuator_class else {}))
+        set_attrs(el, joint=a.joint, ctrlrange=a.ctrlrange, **attrs)
 
 
 def _sensor_section(mj: etree._Element, model: Model) -> None:
@@ -424,7 +419,7 @@ def _sensor_section(mj: etree._Element, model: Model) -> None:
         return
     section = etree.SubElement(mj, "sensor")
     for sensor in model.sensors:
-        _set(
+        set_attrs(
             etree.SubElement(section, sensor.type),
             name=sensor.name,
             site=sensor.site,
@@ -509,7 +504,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         )
 
     mj = etree.Element("mujoco", model=cfg.model_name or robot.name)
-    _set(
+    set_attrs(
         etree.SubElement(mj, "compiler"),
         angle="radian",
         meshdir=cfg.meshdir,
@@ -518,16 +513,16 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         autolimits="true",
         inertiafromgeom="false",  # inertials are ours: from the URDF, repaired or estimated
     )
-    _set(etree.SubElement(mj, "option"), integrator="implicitfast")
+    set_attrs(etree.SubElement(mj, "option"), integrator="implicitfast")
     if model.cameras:  # offscreen buffers must hold the largest described image
         width = max(640, *(c.resolution[0] for c in model.cameras))
         height = max(480, *(c.resolution[1] for c in model.cameras))
         if (width, height) != (640, 480):
             visual = etree.SubElement(mj, "visual")
-            _set(etree.SubElement(visual, "global"), offwidth=width, offheight=height)
+            set_attrs(etree.SubElement(visual, "global"), offwidth=width, offheight=height)
 
     default = etree.SubElement(mj, "default")
-    _set(
+    set_attrs(
         etree.SubElement(etree.SubElement(default, "default"), "geom"),
         contype=0,
         conaffinity=0,
@@ -535,17 +530,17 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         density=0,
     )
     default[0].set("class", "visual")
-    _set(etree.SubElement(etree.SubElement(default, "default"), "geom"), group=3)
+    set_attrs(etree.SubElement(etree.SubElement(default, "default"), "geom"), group=3)
     default[1].set("class", "collision")
 
     files: dict[str, bytes] = {}
     if model.textures or model.materials or model.mesh_assets:
         asset = etree.SubElement(mj, "asset")
         for tex in model.textures:
-            _set(etree.SubElement(asset, "texture"), name=tex.name, type="2d", file=tex.file)
+            set_attrs(etree.SubElement(asset, "texture"), name=tex.name, type="2d", file=tex.file)
             files[f"{cfg.meshdir}/{tex.file}"] = tex.data
         for mat in model.materials:
-            _set(
+            set_attrs(
                 etree.SubElement(asset, "material"),
                 name=mat.name,
                 rgba=mat.rgba,
@@ -554,7 +549,9 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         for mesh in model.mesh_assets:
             # Body inertia never comes from meshes here (inertiafromgeom="false"),
             # and "shell" is the one mode MuJoCo accepts for flat and open meshes.
-            _set(etree.SubElement(asset, "mesh"), name=mesh.name, file=mesh.file, inertia="shell")
+            set_attrs(
+                etree.SubElement(asset, "mesh"), name=mesh.name, file=mesh.file, inertia="shell"
+            )
             files[f"{cfg.meshdir}/{mesh.file}"] = mesh.data
 
     worldbody = etree.SubElement(mj, "worldbody")
@@ -567,7 +564,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         contact = etree.SubElement(mj, "contact")
         for child in tree.children:
             if child.joint is not None:
-                _set(etree.SubElement(contact, "exclude"), body1=WORLD, body2=child.name)
+                set_attrs(etree.SubElement(contact, "exclude"), body1=WORLD, body2=child.name)
 
     mimics = []
     for j in robot.joints:
@@ -592,7 +589,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
         equality = etree.SubElement(mj, "equality")
         for j in mimics:
             assert j.mimic is not None
-            _set(
+            set_attrs(
                 etree.SubElement(equality, "joint"),
                 name=f"{j.name}_mimic",
                 joint1=j.name,
@@ -607,13 +604,13 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
 
     qpos = _home_qpos(entries, model)
     if qpos:
-        key = _set(
+        key = set_attrs(
             etree.SubElement(etree.SubElement(mj, "keyframe"), "key"), name="home", qpos=qpos
         )
         if model.actuators:  # servos hold the home pose from the first step
             at = {name: qpos[i] for i, name in _scalar_qpos_index(entries)}
             ctrl = [at.get(a.joint, 0.0) if a.kind == "position" else 0.0 for a in model.actuators]
-            _set(key, ctrl=ctrl)
+            set_attrs(key, ctrl=ctrl)
 
     etree.indent(mj, space="  ")
     xml = etree.tostring(mj, encoding="utf-8", xml_declaration=False) + b"\n"

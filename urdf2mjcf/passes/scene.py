@@ -14,8 +14,9 @@ import math
 import numpy as np
 from lxml import etree
 
+from ..fmt import set_attrs
 from ..mjmodel import compile_home
-from .emit import EmitResult, _set
+from .emit import EmitResult
 
 
 def lowest_point(result: EmitResult) -> float | None:
@@ -57,19 +58,19 @@ def _geom_bottom(m, d, g: int) -> float:
 def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
     """The scene document; ``floor_z`` is the height of the floor plane."""
     mj = etree.Element("mujoco", model=f"{model_name} scene")
-    _set(etree.SubElement(mj, "include"), file=robot_file)
-    _set(etree.SubElement(mj, "statistic"), center=(0, 0, max(floor_z + 0.5, 0.3)), extent=1.5)
+    set_attrs(etree.SubElement(mj, "include"), file=robot_file)
+    set_attrs(etree.SubElement(mj, "statistic"), center=(0, 0, max(floor_z + 0.5, 0.3)), extent=1.5)
     visual = etree.SubElement(mj, "visual")
-    _set(
+    set_attrs(
         etree.SubElement(visual, "headlight"),
         diffuse=(0.6, 0.6, 0.6),
         ambient=(0.3, 0.3, 0.3),
         specular=(0, 0, 0),
     )
-    _set(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
-    _set(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
+    set_attrs(etree.SubElement(visual, "rgba"), haze=(0.15, 0.25, 0.35, 1))
+    set_attrs(etree.SubElement(visual, "global"), azimuth=120, elevation=-20)
     asset = etree.SubElement(mj, "asset")
-    _set(
+    set_attrs(
         etree.SubElement(asset, "texture"),
         name="scene_skybox",
         type="skybox",
@@ -79,7 +80,7 @@ def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
         width=512,
         height=3072,
     )
-    _set(
+    set_attrs(
         etree.SubElement(asset, "texture"),
         name="scene_groundplane",
         type="2d",
@@ -91,7 +92,7 @@ def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
         width=300,
         height=300,
     )
-    _set(
+    set_attrs(
         etree.SubElement(asset, "material"),
         name="scene_groundplane",
         texture="scene_groundplane",
@@ -100,13 +101,13 @@ def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
         reflectance=0.2,
     )
     worldbody = etree.SubElement(mj, "worldbody")
-    _set(
+    set_attrs(
         etree.SubElement(worldbody, "light"),
         pos=(0, 0, floor_z + 3.5),
         dir=(0, 0, -1),
         directional="true",
     )
-    _set(
+    set_attrs(
         etree.SubElement(worldbody, "geom"),
         name="floor",
         pos=(0, 0, floor_z) if floor_z else None,
