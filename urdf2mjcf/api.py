@@ -6,6 +6,7 @@ import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from . import mjmodel
 from . import output as out
@@ -134,7 +135,10 @@ def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.Emit
 
 
 def convert(
-    source: str | Path, output: str | Path, options: ConvertOptions | None = None, **kwargs
+    source: str | Path,
+    output: str | Path,
+    options: ConvertOptions | None = None,
+    **kwargs: Any,
 ) -> Report:
     """Convert a URDF or xacro file into ``output`` (an ``.xml`` path).
 

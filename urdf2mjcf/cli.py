@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import sys
 import traceback
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,7 @@ import click
 
 from . import headless
 from .errors import ConversionError
+from .ir import Note
 from .passes.collision import CollisionConfig
 from .passes.inertia import InertiaConfig
 from .passes.meshes import MeshConfig
@@ -51,11 +53,11 @@ class _Progress:
     def __enter__(self) -> _Progress:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
-def _echo_notes(notes, verbose: int) -> None:
+def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
     """Warnings, repairs and decimations always; everything else with -v."""
     for note in notes:
         if note.kind in ("warning", "repaired", "decimated") or verbose:

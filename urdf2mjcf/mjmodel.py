@@ -26,7 +26,9 @@ LOCK = threading.RLock()
 (re-entrant: validation holds it while it compiles and steps)."""
 
 
-def compile_xml(xml: bytes | str, files: Mapping[str, bytes], warnings: list[str] | None = None):
+def compile_xml(
+    xml: bytes | str, files: Mapping[str, bytes], warnings: list[str] | None = None
+) -> Any:
     """``mujoco.MjModel`` of ``xml`` with ``files`` (relative names) as its assets.
 
     Raises MuJoCo's ``ValueError``. Warnings MuJoCo gives while compiling are
@@ -74,7 +76,7 @@ def make_room() -> None:
         mujoco.mj_setCacheCapacity(cache, capacity)
 
 
-def home_data(m) -> Any:
+def home_data(m: Any) -> Any:
     """``mujoco.MjData`` of ``m`` at its first keyframe (our ``home``), if it has one."""
     import mujoco
 

@@ -10,6 +10,7 @@ floor; a floating one stands on it.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from lxml import etree
@@ -32,7 +33,7 @@ def lowest_point(result: EmitResult) -> float | None:
     return min(_geom_bottom(m, d, g) for g in geoms)
 
 
-def _geom_bottom(m, d, g: int) -> float:
+def _geom_bottom(m: Any, d: Any, g: int) -> float:
     import mujoco
 
     z = float(d.geom_xpos[g][2])

@@ -110,7 +110,7 @@ def run(
     return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps, model=m)
 
 
-def _fatal(exc: Exception, m, cfg: ValidateConfig, shown: Path) -> ValidationError:
+def _fatal(exc: Exception, m: Any, cfg: ValidateConfig, shown: Path) -> ValidationError:
     """MuJoCo's fatal error while stepping, on one line; for its arena (a long robot
     lying on the floor has thousands of contacts) the limit and how to raise it."""
     message = " ".join(str(exc).split())

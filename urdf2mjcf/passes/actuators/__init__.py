@@ -103,6 +103,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from fnmatch import fnmatchcase
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -504,7 +505,7 @@ def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSyste
     )
 
 
-def _ancestors(m, body: int) -> set[int]:
+def _ancestors(m: Any, body: int) -> set[int]:
     """``body`` and every body above it, the world excluded."""
     out = set()
     while body > 0:

@@ -89,7 +89,9 @@ def _versions() -> dict[str, str]:
 _VERSIONS: dict[str, str] | None = None
 
 
-def cache_key(content_sha256: str, file_type: str, stem: str, scale, max_faces: int) -> str:
+def cache_key(
+    content_sha256: str, file_type: str, stem: str, scale: tuple[float, ...], max_faces: int
+) -> str:
     """The entry name of one mesh file loaded at ``scale`` with ``max_faces``."""
     global _VERSIONS
     if _VERSIONS is None:  # importlib.metadata is slow enough to matter per mesh
