@@ -292,14 +292,10 @@ def test_urdf_texture_is_used_by_a_mesh_with_uvs_and_no_material(tmp_path):
 
 _RENDER = """
 import sys, mujoco
-try:
-    model = mujoco.MjModel.from_xml_path(sys.argv[1])
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    renderer = mujoco.Renderer(model, 64, 64)
-except mujoco.FatalError as exc:  # no OpenGL here
-    print("NO-GL", exc)
-    raise SystemExit(0)
+model = mujoco.MjModel.from_xml_path(sys.argv[1])
+data = mujoco.MjData(model)
+mujoco.mj_forward(model, data)
+renderer = mujoco.Renderer(model, 64, 64)
 renderer.update_scene(data, camera="top")
 img = renderer.render()
 for row, col in ((16, 16), (16, 48), (48, 16), (48, 48)):
@@ -329,11 +325,10 @@ def render_corners(model: Model, tmp_path: Path) -> np.ndarray:
         timeout=120,
         check=True,
     )
-    if done.stdout.startswith("NO-GL"):
-        pytest.skip(done.stdout)
     return np.array([line.split() for line in done.stdout.splitlines()], dtype=float)
 
 
+@pytest.mark.usefixtures("gl_context")  # skips only where no GL context can be made
 def test_obj_texture_appears_the_right_way_up_in_mujoco(tmp_path):
     model = run(visual_link("base", mesh_ref(MESHES / "textured_quad.obj")))
     assert render_corners(model, tmp_path) == pytest.approx(QUADRANTS, abs=40)
@@ -381,6 +376,7 @@ _TEXTURED_DAE = """<?xml version="1.0" encoding="utf-8"?>
 """
 
 
+@pytest.mark.usefixtures("gl_context")  # skips only where no GL context can be made
 def test_collada_texture_in_a_sibling_folder_is_found_and_appears_the_right_way_up(tmp_path):
     # the usual ROS layout: meshes/x.dae refers to ../textures/y.png
     (tmp_path / "pkg" / "meshes").mkdir(parents=True)
