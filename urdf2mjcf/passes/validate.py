@@ -1,8 +1,9 @@
 """Pass 7: compile the written MJCF with MuJoCo and step it; any warning fails.
 
 MuJoCo's compiler is the best validator of MJCF there is. Stepping for a
-second with zero controls catches what compiles but cannot simulate
-(unstable inertias, bad constraints); MuJoCo reports those as warnings,
+second from the home keyframe (its controls hold the home pose) catches what
+compiles but cannot simulate (unstable inertias, bad constraints); MuJoCo
+reports those as warnings,
 which we treat as failures of the conversion. Sensors are evaluated in the
 first and the last step only (see :func:`run`).
 """
