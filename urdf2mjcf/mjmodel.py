@@ -4,15 +4,18 @@ A conversion compiles up to four documents, each different: the robot
 without actuators (actuators: gains depend on the robot's dynamics), the
 merged ``<mujoco>`` extension without keyframes (extension), the finished
 robot (scene: where the floor goes) and ``scene.xml`` around it (validate).
-The scene pass needs only where bodies and geoms are at home, which the
-actuators pass's model already says when the documents differ only in
-actuators, sensors, sites and cameras: then it is reused, not compiled again
-(:func:`compile_home` with ``shape_only``). The rest share the mesh work:
-MuJoCo caches processed mesh assets per process, keyed by asset name and
-content, so every compile here goes through memory with the same relative
-names (``assets/<name>``) and after the first the others skip decoding and
-processing meshes (compiling a robot's scene after the robot takes a third
-of the time).
+The actuators and scene passes read the dynamics and the colliding geoms,
+never a visual geom: they compile the document without its visual geoms and
+the meshes only those use (``collision_only``), which are most of the faces
+MuJoCo would process, so the full robot is compiled once, by validation. The
+scene pass needs only where bodies and geoms are at home, which the actuators
+pass's model already says when the documents differ only in actuators,
+sensors, sites and cameras: then it is reused, not compiled again
+(``shape_only``). And the compiles share the mesh work: MuJoCo caches
+processed mesh assets per process, keyed by asset name and content, so every
+compile here goes through memory with the same relative names
+(``assets/<name>``) and the later ones skip decoding and processing the
+meshes an earlier one did.
 """
 
 from __future__ import annotations
@@ -87,25 +90,91 @@ def home_data(m: Any) -> Any:
 
 
 def compile_home(
-    xml: bytes | str, files: Mapping[str, bytes], *, shape_only: bool = False
+    xml: bytes | str,
+    files: Mapping[str, bytes],
+    *,
+    shape_only: bool = False,
+    collision_only: bool = False,
 ) -> tuple[Any, Any]:
     """(model, data at home) of ``xml`` with ``files``; raises MuJoCo's ``ValueError``.
 
-    ``shape_only``: the caller reads only where bodies and geoms are at home.
-    The model of the previous call is returned when its document had the same
-    :func:`shape` and the same files, instead of compiling this one.
+    ``collision_only``: the caller reads the dynamics and the colliding geoms,
+    never a visual one: the document is compiled without its visual geoms
+    where :func:`without_visuals` finds that safe. ``shape_only``: the caller
+    reads only where bodies and geoms are at home: the model of the previous
+    call is returned when its document had the same :func:`shape` and the
+    same files, instead of compiling this one.
     """
     global _last
-    key = shape(xml)
+    whole = xml if isinstance(xml, bytes) else xml.encode()
+    doc = (without_visuals(whole) if collision_only else None) or whole
+    key = shape(doc)
     with LOCK:
         last = _last
     if shape_only and last is not None and last[0] == key and last[1] == files:
         m = last[2]
     else:
-        m = compile_xml(xml, files)
+        try:
+            m = compile_xml(doc, files)
+        except ValueError:
+            if doc is whole:
+                raise
+            m = compile_xml(whole, files)  # something used what we left out: its error, if any
     with LOCK:
         _last = (key, dict(files), m)
     return m, home_data(m)
+
+
+def without_visuals(xml: bytes) -> bytes | None:
+    """``xml`` without its visual geoms and the meshes, materials and texture files
+    only they use; None where that could change the dynamics or the contacts.
+
+    Safe for emit's documents: bodies take their mass from ``<inertial>`` alone
+    (``inertiafromgeom="false"``) and the ``visual`` default class neither
+    collides nor is collided with; a geom of that class that sets its own
+    ``contype``/``conaffinity`` stays.
+    """
+    from lxml import etree
+
+    root = etree.fromstring(xml, etree.XMLParser(huge_tree=True))
+    compiler = root.find("compiler")
+    visual = root.find(".//default[@class='visual']/geom")
+    if (
+        compiler is None
+        or compiler.get("inertiafromgeom") != "false"
+        or visual is None
+        or visual.get("contype") != "0"
+        or visual.get("conaffinity") != "0"
+    ):
+        return None
+    dropped = [
+        g
+        for g in root.iter("geom")
+        if g.get("class") == "visual" and g.get("contype") is None and g.get("conaffinity") is None
+    ]
+    if not dropped:
+        return None
+    for g in dropped:
+        g.getparent().remove(g)
+
+    def used(attr: str) -> set[str]:
+        return {v for el in root.iter() if (v := el.get(attr)) is not None}
+
+    for section in root.findall("asset"):
+        meshes = used("mesh")
+        for el in section.findall("mesh"):
+            if el.get("name") not in meshes:
+                section.remove(el)
+        materials = used("material")
+        for el in section.findall("material"):
+            if el.get("name") not in materials:
+                section.remove(el)
+        textures = used("texture")
+        for el in section.findall("texture"):
+            skybox = el.get("type") == "skybox"  # used by being there
+            if el.get("file") and not skybox and el.get("name") not in textures:
+                section.remove(el)
+    return etree.tostring(root)
 
 
 def shape(xml: bytes | str) -> bytes:

@@ -24,9 +24,12 @@ def lowest_point(result: EmitResult) -> float | None:
     """World z of the lowest collision geometry at the home keyframe (None: no geoms)."""
     import mujoco
 
-    m, d = compile_home(result.xml, result.files, shape_only=True)
+    m, d = compile_home(result.xml, result.files, shape_only=True, collision_only=True)
     mujoco.mj_kinematics(m, d)
     colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
+    if not colliding:  # only visual geoms to go by: they were left out of that compile
+        m, d = compile_home(result.xml, result.files)
+        mujoco.mj_kinematics(m, d)
     geoms = colliding or list(range(m.ngeom))
     if not geoms:
         return None

@@ -425,7 +425,8 @@ def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSyste
         replace(model, actuators=(), sensors=()), emit.EmitConfig(floating_base=cfg.floating_base)
     )
     try:
-        m, d = compile_home(result.xml, result.files)
+        # visual geoms carry no mass and touch nothing: left out of this compile
+        m, d = compile_home(result.xml, result.files, collision_only=True)
     except ValueError as exc:
         raise ValidationError(
             f"MuJoCo rejected the model while sizing actuator gains: {exc}", file=robot.source

@@ -1,0 +1,131 @@
+"""The compile helper: a collision-only compile (visual geoms and their meshes left
+out) has the dynamics and the contacts of the whole document, and is refused where
+it could differ. The reference is MuJoCo compiling the document as written."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+
+import urdf2mjcf
+from urdf2mjcf import mjmodel
+
+MESHES = Path(__file__).parent / "data" / "meshes"
+
+URDF = """<robot name="arm">
+  <link name="base">
+    <visual><geometry><mesh filename="meshes/colored_box.dae"/></geometry></visual>
+    <collision><origin xyz="0 0 0.05"/><geometry><box size="0.2 0.2 0.1"/></geometry></collision>
+    <inertial><mass value="2"/><inertia ixx="0.02" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/>
+    </inertial>
+  </link>
+  <link name="upper">
+    <visual><geometry><mesh filename="meshes/ball.stl"/></geometry></visual>
+    <collision><geometry><mesh filename="meshes/ball.stl"/></geometry></collision>
+    <inertial><origin xyz="0 0 0.1"/><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.005" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="shoulder" type="revolute">
+    <parent link="base"/><child link="upper"/><origin xyz="0 0 0.3" rpy="0.3 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="10" velocity="1"/>
+  </joint>
+</robot>
+"""
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory) -> tuple[bytes, dict[str, bytes]]:
+    """The robot MJCF as converted, and every file beside it by relative name."""
+    tmp = tmp_path_factory.mktemp("arm")
+    (tmp / "meshes").mkdir()
+    shutil.copy(MESHES / "colored_box.dae", tmp / "meshes")
+    trimesh.creation.icosphere(subdivisions=3, radius=0.05).export(tmp / "meshes" / "ball.stl")
+    (tmp / "arm.urdf").write_text(URDF)
+    out = tmp / "out"
+    urdf2mjcf.convert(tmp / "arm.urdf", out / "robot.xml", use_environment=False, scene=False)
+    files = {str(p.relative_to(out)): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    return files["robot.xml"], files
+
+
+def at_home(m):
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def colliding(m, d) -> list[tuple]:
+    """(type, world position, world frame, size) of each geom that collides, in order."""
+    out = []
+    for g in range(m.ngeom):
+        if m.geom_contype[g] or m.geom_conaffinity[g]:
+            out.append(
+                (int(m.geom_type[g]), *d.geom_xpos[g], *d.geom_xmat[g], *m.geom_size[g])
+            )
+    return out
+
+
+def test_collision_only_compile_has_the_dynamics_and_contacts_of_the_whole(written):
+    xml, files = written
+    whole = mujoco.MjModel.from_xml_string(xml.decode(), files)
+    light, light_data = mjmodel.compile_home(xml, files, collision_only=True)
+    assert light.nmesh < whole.nmesh  # the visual meshes were left out
+    assert light.nmeshface < whole.nmeshface
+    d, dl = at_home(whole), light_data
+    mujoco.mj_forward(light, dl)
+    np.testing.assert_array_equal(light.body_mass, whole.body_mass)
+    np.testing.assert_array_equal(light.body_inertia, whole.body_inertia)
+    full, full_light = np.zeros((whole.nv, whole.nv)), np.zeros((light.nv, light.nv))
+    mujoco.mj_fullM(whole, d, full)
+    mujoco.mj_fullM(light, dl, full_light)
+    np.testing.assert_array_equal(full, full_light)
+    np.testing.assert_array_equal(d.xipos, dl.xipos)
+    assert colliding(whole, d) == colliding(light, dl) and colliding(whole, d)
+    # the collision meshes themselves, vertex for vertex
+    mesh_of = {light.mesh(i).name: i for i in range(light.nmesh)}
+    for i in range(whole.nmesh):
+        name = whole.mesh(i).name
+        if name in mesh_of:
+            j = mesh_of[name]
+            a = whole.mesh_vert[whole.mesh_vertadr[i] : whole.mesh_vertadr[i] + whole.mesh_vertnum[i]]
+            b = light.mesh_vert[light.mesh_vertadr[j] : light.mesh_vertadr[j] + light.mesh_vertnum[j]]
+            np.testing.assert_array_equal(a, b)
+
+
+def test_visual_geoms_that_could_matter_are_kept(written):
+    xml, _ = written
+    assert mjmodel.without_visuals(xml) is not None
+    # a visual class that collides: its geoms make contacts
+    colliding_class = xml.replace(
+        b'<geom contype="0" conaffinity="0" group="2" density="0"/>',
+        b'<geom contype="1" conaffinity="0" group="2" density="0"/>',
+    )
+    assert colliding_class != xml
+    assert mjmodel.without_visuals(colliding_class) is None
+    # masses from geoms: visual geoms would weigh
+    from_geoms = xml.replace(b'inertiafromgeom="false"', b'inertiafromgeom="true"')
+    assert from_geoms != xml
+    assert mjmodel.without_visuals(from_geoms) is None
+
+
+def test_a_document_that_needs_what_was_left_out_compiles_whole(written):
+    xml, files = written
+    # a contact pair names a visual geom: left out, the pair would not compile
+    light = mjmodel.without_visuals(xml)
+    assert light is not None
+    name = b"visual_probe"
+    tagged = xml.replace(b'<geom class="visual"', b'<geom name="visual_probe" class="visual"', 1)
+    tagged = tagged.replace(
+        b"</worldbody>",
+        b'</worldbody>\n  <contact><pair geom1="visual_probe" geom2="base_collision"/></contact>',
+        1,
+    )
+    assert name in tagged
+    m, _ = mjmodel.compile_home(tagged, files, collision_only=True)
+    whole = mujoco.MjModel.from_xml_string(tagged.decode(), files)
+    assert m.nmesh == whole.nmesh and m.npair == 1
