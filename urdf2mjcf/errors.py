@@ -60,3 +60,8 @@ class OutputError(ConversionError):
 
 class FacilityError(ConversionError):
     """A built facility, or a runner's input (waypoints file), lacks something or is malformed."""
+
+
+class PlanningError(ConversionError):
+    """No collision-free joint motion: the start or goal is in collision (the message
+    names the two bodies), out of the joints' ranges, or no path within the time limit."""
