@@ -44,6 +44,8 @@ class RoverSim:
         self.arm_targets = {n: q.copy() for n, q in self.home.items()}
         self.odometry: dict[str, Odometry] = {}
         self._hold: dict[str, np.ndarray] = {}
+        self.on_step: list[Callable[[], None]] = []
+        """Called after every physics step (a recorder), whatever runs the steps."""
         self.reset_odometry()
 
     @property
@@ -114,6 +116,8 @@ class RoverSim:
             mujoco.mj_step(self.m, self.d)
             for name, r in self.rovers.items():
                 self.odometry[name].update(r, self.d, self.dt)
+            for f in self.on_step:
+                f()
 
     def settle(self, seconds: float = 1.0) -> None:
         """Stand still (wheels held, arm at its targets) for ``seconds``; odometry restarts."""
