@@ -88,6 +88,13 @@ def _frames_folder(
     help="save PNGs of key moments (scene camera, wrist camera red mask)",
 )
 @click.option(
+    "--record",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="write a ROS 2 recording (.mcap) of the run; not with --trials "
+    "(pip install 'mjcf-forge[ros]')",
+)
+@click.option(
     "--workers", type=click.IntRange(min=1), default=None, help="parallel processes for --trials"
 )
 @click.option(
@@ -103,6 +110,7 @@ def facility_demo_command(
     recipe: Path | None,
     report: Path | None,
     frames: Path | None,
+    record: Path | None,
     workers: int | None,
     overwrite: bool,
 ) -> None:
@@ -124,6 +132,15 @@ def facility_demo_command(
     check_names(spec, waypoints, fac)
     if report:
         out.check_file(report, overwrite, GENERATOR)
+    if record:
+        if trials:
+            raise click.UsageError(
+                "--record records one run, not --trials: build the facility with the trial's "
+                "--seed (make-facility) and record the demo there"
+            )
+        from .record import check_recording
+
+        check_recording(record, overwrite, GENERATOR)
     previous = out.check_folder(frames, overwrite, FRAMES_MANIFEST, GENERATOR) if frames else []
     trial_recipe = None
     if trials:
@@ -133,7 +150,7 @@ def facility_demo_command(
         if trial_recipe is not None:
             result, success = _trials(trial_recipe, root, waypoints, seed, trials, workers, staged)
         else:
-            result, success = _once(fac, spec, staged)
+            result, success = _once(fac, spec, staged, record)
     if report:
         out.write_json(report, result, GENERATOR)
     sys.exit(0 if success else 1)
@@ -164,14 +181,30 @@ def _trials(
     return result, ok == len(results)
 
 
-def _once(fac: Facility, spec: dict, frames: Path | None) -> tuple[dict, bool]:
+def _once(
+    fac: Facility, spec: dict, frames: Path | None, record: Path | None = None
+) -> tuple[dict, bool]:
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
+    recorder = None
+    if record:
+        from .record import Recorder, facility_sources
+
+        recorder = Recorder(fac.model, fac.data, facility_sources(fac), record, generator=GENERATOR)
+        recorder.step()  # the start
+        demo.ctl.on_step.append(recorder.step)
     try:
         res = demo.run()
+    except BaseException:
+        if recorder is not None:
+            recorder.abort()
+        raise
     finally:
         demo.close()
+    if recorder is not None:  # a failed demo is recorded too: that is when one looks
+        recorder.close()
+        click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")
     result = res.to_json()
     click.echo(_table(result["steps"]))
     click.echo(
