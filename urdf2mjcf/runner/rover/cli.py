@@ -57,7 +57,16 @@ from .tasks import ArmWave, Straight, Task, Turn
     default=None,
     help="write the reports as JSON",
 )
-@click.option("--overwrite", is_flag=True, help="replace a --report file we did not write")
+@click.option(
+    "--record",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="write a ROS 2 recording (.mcap): joint states, TF, every rover's IMU "
+    "(pip install 'mjcf-forge[ros]')",
+)
+@click.option(
+    "--overwrite", is_flag=True, help="replace a --report or --record file we did not write"
+)
 def rover_drive_command(
     scene: Path,
     names: tuple[str, ...],
@@ -68,6 +77,7 @@ def rover_drive_command(
     arm: bool,
     settle: float,
     report: Path | None,
+    record: Path | None,
     overwrite: bool,
 ) -> None:
     """Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, then
@@ -76,11 +86,23 @@ def rover_drive_command(
 
     if report is not None:
         out.check_file(report, overwrite, "rover-drive")  # before driving, not after
+    if record is not None:
+        from ..record import check_recording
+
+        check_recording(record, overwrite, "rover-drive")
+    recorder = None
     try:
         sim = RoverSim(scene)
         chosen = list(names) or list(sim.rovers)
         for n in chosen:
             sim.rover(n)
+        if record is not None:
+            from ..record import Recorder, rover_sources
+
+            sources = rover_sources(sim.m, sim.manifest, sim.rovers)
+            recorder = Recorder(sim.m, sim.d, sources, record, generator="rover-drive")
+            recorder.step()  # the start
+            sim.on_step.append(recorder.step)
         sim.settle(settle)
         results: list[dict] = []
         plans: list[tuple[str, Callable[[], Task]]] = []
@@ -94,8 +116,14 @@ def rover_drive_command(
                 click.echo(r.summary())
                 results.append(asdict(r))
         warnings = sim.warnings()
+        if recorder is not None:
+            recorder.close()
+            click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")
     except RoverError as exc:
         raise click.ClickException(str(exc)) from None
+    finally:
+        if recorder is not None:
+            recorder.abort()  # after close(): nothing to do; else nothing is left behind
     if report is not None:
         data = {"scene": str(scene), "tasks": results, "warnings": warnings}
         out.write_json(report, data, "rover-drive")
