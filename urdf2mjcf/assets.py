@@ -53,12 +53,16 @@ def obj_bytes(mesh: MeshData) -> bytes:
 
 def mesh_asset(stem: str, mesh: MeshData) -> MeshAsset:
     """A content-named asset: OBJ when the mesh carries texture coordinates, else STL."""
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if mesh.uv is not None:
-        data, ext = obj_bytes(mesh), "obj"
+        data, ext = obj_bytes(mesh), "obj"  # repr() of each float: exact
     else:
         data, ext = stl_bytes(mesh), "stl"
+        # what the file holds: the faces' corners, rounded to float32
+        corners = vertices[np.unique(np.asarray(mesh.faces, dtype=np.int64))]
+        vertices = corners.astype(np.float32).astype(np.float64)
     name = content_name(stem, data)
-    return MeshAsset(name=name, file=f"{name}.{ext}", data=data)
+    return MeshAsset(name=name, file=f"{name}.{ext}", data=data, vertices=vertices)
 
 
 def merge_assets(

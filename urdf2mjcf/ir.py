@@ -367,6 +367,9 @@ class MeshAsset:
     """File name inside ``assets/``."""
     data: bytes = field(repr=False)
     """Exact file content (binary STL or OBJ)."""
+    vertices: np.ndarray | None = field(default=None, repr=False, compare=False)
+    """(n, 3) float64 vertices exactly as ``data`` stores them (STL: rounded to float32),
+    kept so that later passes (inertia, sensors) need not decode ``data`` again."""
 
 
 @dataclass(frozen=True)

@@ -54,12 +54,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import io
 import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import PurePosixPath
 from typing import Literal
 
 import numpy as np
@@ -336,12 +334,10 @@ def _visual_mesh(
 
 
 def _asset_vertices(asset: MeshAsset) -> np.ndarray:
-    """(n, 3) vertices of an STL or OBJ mesh asset."""
-    import trimesh
-
-    suffix = PurePosixPath(asset.file).suffix.lstrip(".").lower()
-    mesh = trimesh.load_mesh(io.BytesIO(asset.data), file_type=suffix, process=False)
-    return np.asarray(mesh.vertices, dtype=float)
+    """(n, 3) vertices of a mesh asset, as the mesh and collision passes kept them."""
+    if asset.vertices is None:
+        raise ValueError(f"mesh asset {asset.name} carries no vertices")
+    return asset.vertices
 
 
 # ---------------------------------------------------------------------------

@@ -47,13 +47,12 @@ in the frame it is placed on):
 from __future__ import annotations
 
 import math
-import struct
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...ir import Camera, Geom, Joint, MeshAsset, Model, Note, Quat, Sensor, Site, Vec3
+from ...ir import Camera, Geom, Joint, Model, Note, Quat, Sensor, Site, Vec3
 from ...transforms import (
     IDENTITY_QUAT,
     canonical_quat,
@@ -428,7 +427,7 @@ class _Builder:
     def _vertices(self, mesh: str | None, element: str) -> np.ndarray | None:
         if mesh not in self._mesh_vertices:
             asset = next((a for a in self.model.mesh_assets if a.name == mesh), None)
-            vertices = _asset_vertices(asset) if asset is not None else None
+            vertices = asset.vertices if asset is not None else None
             if vertices is None or not len(vertices):
                 message = f"mesh '{mesh}' has no readable vertices; left out of the touch zone"
                 self.notes.append(Note("warning", element, message))
@@ -466,25 +465,6 @@ def _qz(angle: float) -> Quat:
 
 def _qy(angle: float) -> Quat:
     return (math.cos(angle / 2), 0.0, math.sin(angle / 2), 0.0)
-
-
-def _asset_vertices(asset: MeshAsset) -> np.ndarray | None:
-    """Vertices of a mesh asset: binary STL (what the mesh passes write) or OBJ."""
-    data = asset.data
-    if asset.file.lower().endswith(".obj"):
-        lines = data.decode(errors="replace").splitlines()
-        rows = [line.split()[1:4] for line in lines if line.startswith("v ")]
-        return np.array(rows, float).reshape(-1, 3)
-    if len(data) >= 84:
-        (count,) = struct.unpack_from("<I", data, 80)
-        if len(data) == 84 + 50 * count:
-            rec = np.frombuffer(
-                data, dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")], offset=84
-            )
-            return rec["v"].reshape(-1, 3).astype(np.float64)
-    text = data.decode(errors="replace")  # ASCII STL
-    rows = [line.split()[1:4] for line in text.splitlines() if line.strip().startswith("vertex")]
-    return np.array(rows, float).reshape(-1, 3) if rows else None
 
 
 def run(model: Model, cfg: SensorConfig) -> Model:
