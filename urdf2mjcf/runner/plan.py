@@ -1,0 +1,481 @@
+"""Collision-free joint moves: OMPL's RRT* with MuJoCo as the collision checker, timed
+with TOPP-RA within the joints' velocity and acceleration limits.
+
+The paper's stack planned its joint moves with MoveIt and OMPL's RRT*; this is the
+same planner on the compiled MuJoCo model, so what is checked is exactly what is
+simulated (the model's geoms, its ``contype``/``conaffinity``, its ``<exclude>``s and
+MuJoCo's parent-child filter).
+
+A state (the planned joints' positions) is checked on a private ``MjData``: every
+other coordinate comes from the full state at the start of the move, joints that
+follow a planned joint through a joint equality (a mimic, e.g. the lift's middle
+stage) are set from their leader's polynomial, ``mj_kinematics`` + ``mj_collision``
+run, and the state is invalid when a contact closer than ``margin`` involves a robot
+body (the subtrees of the planned joints, plus a held body) and a body that is not
+ignored, in a pair that is not allowed. A held body (``attached_body``, a free body)
+keeps its pose relative to the body of the last planned joint at the start of the
+move; its contacts with that body's subtree (the gripper holding it) are allowed.
+
+A move:
+
+1. the straight joint interpolation, checked every ``resolution`` (joint-space
+   distance, rad and m mixed); when free it is the path (``planner == "straight"``);
+2. otherwise RRT* (``ompl.geometric.RRTstar``) with OMPL's seeded RNG, motions checked
+   at the same resolution, stopped after ``ITERATIONS`` iterations once a solution
+   exists (deterministic for a seed) or at ``time_limit`` seconds; then OMPL's
+   shortcutting (``simplifySolution``, run to convergence);
+3. TOPP-RA time-optimal timing of a cubic spline through the path, densified so the
+   spline keeps to the checked segments, under ``|qd| <= vmax`` and ``|qdd| <= amax``
+   per joint, from rest to rest; sampled every ``SAMPLE_DT`` seconds, stretched in
+   time where the samples' finite differences exceed a limit, and checked against
+   collisions again at ``resolution``.
+
+Failures raise ``PlanningError``: start or goal in collision (naming the two bodies),
+out of range, or no path within the time limit.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..errors import PlanningError
+
+log = logging.getLogger(__name__)
+
+SAMPLE_DT = 0.01
+"""Spacing of the timed trajectory's samples (s)."""
+ITERATIONS = 100
+"""RRT* iterations once a solution exists (the planner refines it meanwhile)."""
+DENSE = 0.05
+"""Waypoint spacing along each path segment for the timing spline (joint-space norm)."""
+HINGE, SLIDE, FREE = (int(t) for t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE,
+                                       mujoco.mjtJoint.mjJNT_FREE))
+RANGE_TOL = 1e-3
+"""A start this far past a joint's range (rad or m) counts as at the limit."""
+
+
+@dataclass(frozen=True)
+class PlannedMove:
+    times: np.ndarray
+    """(n,) seconds from the start, ``times[0] == 0``."""
+    q: np.ndarray
+    """(n, k) positions of the planned joints at ``times`` (rad or m)."""
+    qd: np.ndarray
+    """(n, k) joint velocities (rad/s or m/s)."""
+    path: np.ndarray
+    """(m, k) the geometric path (after shortcutting), before timing."""
+    planning_time_s: float
+    """Wall time spent planning: checks, OMPL, simplification and timing (s)."""
+    path_length: float
+    """Joint-space length of ``path`` (rad and m mixed: sum of the segments' norms)."""
+    straight_line_free: bool
+    """True when the straight joint interpolation was already collision-free."""
+    planner: str
+    """``"straight"`` or ``"RRTstar"``: what produced the path."""
+
+
+@dataclass(frozen=True)
+class _Contact:
+    body1: str
+    body2: str
+    geom1: str
+    geom2: str
+    dist: float
+
+    def __str__(self) -> str:
+        return (
+            f"'{self.body1}' (geom '{self.geom1}') touches '{self.body2}' "
+            f"(geom '{self.geom2}'), distance {self.dist * 1000:.1f} mm"
+        )
+
+
+def _name(m: mujoco.MjModel, kind: mujoco.mjtObj, i: int) -> str:
+    return mujoco.mj_id2name(m, kind, i) or f"#{i}"
+
+
+def _subtree(m: mujoco.MjModel, roots: Iterable[int]) -> np.ndarray:
+    """(nbody,) bool: the bodies in the subtrees of ``roots``."""
+    inside = np.zeros(m.nbody, bool)
+    inside[list(roots)] = True
+    # MuJoCo numbers a body after its parent, so one pass in order reaches every descendant.
+    for b in range(1, m.nbody):
+        inside[b] |= inside[m.body_parentid[b]]
+    return inside
+
+
+def path_length(path: np.ndarray) -> float:
+    """Sum of the segments' norms of a joint path (rows)."""
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) if len(path) > 1 else 0.0
+
+
+def _densify(path: np.ndarray, step: float) -> np.ndarray:
+    """The polyline through ``path`` with points at most ``step`` apart (corners kept)."""
+    out = [path[:1]]
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step))
+        out.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+    return np.vstack(out)
+
+
+class JointPlanner:
+    """Collision-free, timed moves of a set of hinge and slide joints of a model."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        joint_ids: Sequence[int],
+        vmax: ArrayLike,
+        amax: ArrayLike,
+        *,
+        ignore_bodies: Iterable[int] = (),
+        allowed_pairs: Iterable[tuple[int, int]] = (),
+        margin: float = 0.0,
+        seed: int = 0,
+        time_limit: float = 2.0,
+        resolution: float = 0.01,
+    ) -> None:
+        import toppra  # noqa: F401  (slow first import, here rather than in a move's timing)
+
+        m = model
+        if margin > 0:
+            # MuJoCo reports a pair only closer than its geoms' margin: widen it on a copy.
+            m = copy.deepcopy(model)
+            m.geom_margin[:] = np.maximum(m.geom_margin, margin)
+        self.m = m
+        self.d = mujoco.MjData(m)
+        self.joints = np.asarray(joint_ids, int)
+        k = len(self.joints)
+        if k == 0:
+            raise ValueError("no joints to plan")
+        for j in self.joints:
+            if int(m.jnt_type[j]) not in (HINGE, SLIDE):
+                raise ValueError(f"joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' is not a "
+                                 "hinge or slide joint")
+        self.vmax = np.broadcast_to(np.asarray(vmax, float), (k,)).copy()
+        self.amax = np.broadcast_to(np.asarray(amax, float), (k,)).copy()
+        if np.any(self.vmax <= 0) or np.any(self.amax <= 0):
+            raise ValueError("vmax and amax must be positive")
+        self.qadr = m.jnt_qposadr[self.joints]
+        self.lower, self.upper = self._bounds()
+        self.followers = self._followers()
+        self.margin = float(margin)
+        self.seed = int(seed)
+        self.time_limit = float(time_limit)
+        self.resolution = float(resolution)
+        self.robot = _subtree(m, m.jnt_bodyid[self.joints])
+        self.ignored = np.zeros(m.nbody, bool)
+        self.ignored[list(ignore_bodies)] = True
+        self.allowed = np.zeros((m.nbody, m.nbody), bool)
+        for a, b in allowed_pairs:
+            self.allowed[a, b] = self.allowed[b, a] = True
+        # the body of the deepest planned joint: what a held body moves with
+        depth = np.zeros(m.nbody, int)
+        for b in range(1, m.nbody):
+            depth[b] = depth[m.body_parentid[b]] + 1
+        self.last_body = int(max(m.jnt_bodyid[self.joints], key=lambda b: depth[b]))
+        # per plan(): the full state at the start and the held body, if any
+        self._base = m.qpos0.copy()
+        self._held: tuple[int, int, np.ndarray, np.ndarray] | None = None
+        self._robot_now = self.robot
+        self._allowed_now = self.allowed
+
+    # ---- model facts ----------------------------------------------------------------
+
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        m = self.m
+        lo, hi = np.empty(len(self.joints)), np.empty(len(self.joints))
+        for i, j in enumerate(self.joints):
+            if m.jnt_limited[j]:
+                lo[i], hi[i] = m.jnt_range[j]
+            elif int(m.jnt_type[j]) == HINGE:
+                lo[i], hi[i] = -2 * math.pi, 2 * math.pi
+            else:
+                raise ValueError(f"slide joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' has "
+                                 "no range: the planner needs bounds")
+        return lo, hi
+
+    def _followers(self) -> list[tuple[int, int, int, np.ndarray]]:
+        """(follower qpos adr, leader index in the planned joints, leader qpos adr, polycoef)
+        for each active joint equality whose leader is planned and follower is not."""
+        m = self.m
+        planned = {int(j): i for i, j in enumerate(self.joints)}
+        out = []
+        for e in range(m.neq):
+            if int(m.eq_type[e]) != int(mujoco.mjtEq.mjEQ_JOINT) or not m.eq_active0[e]:
+                continue
+            j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+            if j2 in planned and j1 not in planned:
+                out.append((int(m.jnt_qposadr[j1]), planned[j2], int(m.jnt_qposadr[j2]),
+                            m.eq_data[e, :5].copy()))
+        return out
+
+    # ---- collision checks -------------------------------------------------------------
+
+    def _set(self, q: np.ndarray) -> None:
+        """Private data at the planned joints' ``q``, everything else from the start state."""
+        m, d = self.m, self.d
+        d.qpos[:] = self._base
+        d.qpos[self.qadr] = q
+        for f_adr, i, l_adr, c in self.followers:
+            x = q[i] - m.qpos0[l_adr]
+            d.qpos[f_adr] = m.qpos0[f_adr] + c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * c[4])))
+        mujoco.mj_kinematics(m, d)
+        if self._held is not None:
+            adr, _, rel_pos, rel_quat = self._held
+            link = self.last_body
+            pos, quat = np.empty(3), np.empty(4)
+            mujoco.mju_mulPose(pos, quat, d.xpos[link], d.xquat[link], rel_pos, rel_quat)
+            d.qpos[adr : adr + 3], d.qpos[adr + 3 : adr + 7] = pos, quat
+            mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+
+    def _first_contact(self) -> _Contact | None:
+        """The closest counted contact of the private data's current state, or None."""
+        m, d = self.m, self.d
+        n = d.ncon
+        if n == 0:
+            return None
+        geoms = d.contact.geom[:n]
+        dist = d.contact.dist[:n]
+        b1, b2 = m.geom_bodyid[geoms[:, 0]], m.geom_bodyid[geoms[:, 1]]
+        counted = (
+            (dist < self.margin)
+            & (self._robot_now[b1] | self._robot_now[b2])
+            & ~self.ignored[b1]
+            & ~self.ignored[b2]
+            & ~self._allowed_now[b1, b2]
+        )
+        if not counted.any():
+            return None
+        c = int(np.flatnonzero(counted)[np.argmin(dist[counted])])
+        body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
+        return _Contact(
+            _name(m, body, int(b1[c])), _name(m, body, int(b2[c])),
+            _name(m, geom, int(geoms[c, 0])), _name(m, geom, int(geoms[c, 1])), float(dist[c]),
+        )
+
+    def _contact_at(self, q: np.ndarray) -> _Contact | None:
+        self._set(np.asarray(q, float))
+        return self._first_contact()
+
+    def _valid(self, q: np.ndarray) -> bool:
+        self._set(q)
+        return self._first_contact() is None
+
+    def is_free(self, qpos_full: np.ndarray) -> bool:
+        """True when the full state ``qpos_full`` has no counted contact (no held body)."""
+        saved = self._base, self._held, self._robot_now, self._allowed_now
+        self._base, self._held = np.asarray(qpos_full, float).copy(), None
+        self._robot_now, self._allowed_now = self.robot, self.allowed
+        try:
+            return self._valid(self._base[self.qadr])
+        finally:
+            self._base, self._held, self._robot_now, self._allowed_now = saved
+
+    def _segment_free(self, a: np.ndarray, b: np.ndarray) -> bool:
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / self.resolution))
+        return all(self._valid(a + (i / n) * (b - a)) for i in range(1, n + 1))
+
+    # ---- planning ---------------------------------------------------------------------
+
+    def _hold(self, attached_body: int | None) -> None:
+        """Start-of-move bookkeeping of the held body (pose in the last robot body)."""
+        m = self.m
+        self._held, self._robot_now, self._allowed_now = None, self.robot, self.allowed
+        if attached_body is None:
+            return
+        b = int(attached_body)
+        jnt = m.body_jntadr[b]
+        if m.body_jntnum[b] != 1 or int(m.jnt_type[jnt]) != FREE:
+            raise ValueError(f"attached body '{_name(m, mujoco.mjtObj.mjOBJ_BODY, b)}' is not "
+                             "a free body")
+        self._set(self._base[self.qadr])  # start pose, nothing held yet
+        d, link = self.d, self.last_body
+        inv_pos, inv_quat = np.empty(3), np.empty(4)
+        mujoco.mju_negPose(inv_pos, inv_quat, d.xpos[link], d.xquat[link])
+        rel_pos, rel_quat = np.empty(3), np.empty(4)
+        mujoco.mju_mulPose(rel_pos, rel_quat, inv_pos, inv_quat, d.xpos[b], d.xquat[b])
+        self._held = (int(m.jnt_qposadr[jnt]), b, rel_pos, rel_quat)
+        held = _subtree(m, [b])
+        self._robot_now = self.robot | held
+        grip = _subtree(m, [link])
+        self._allowed_now = self.allowed.copy()
+        self._allowed_now[np.ix_(held, grip)] = True
+        self._allowed_now[np.ix_(grip, held)] = True
+
+    def plan(
+        self,
+        qpos_full_start: np.ndarray,
+        q_goal: ArrayLike,
+        *,
+        attached_body: int | None = None,
+    ) -> PlannedMove:
+        """A collision-free, timed move of the planned joints from the state
+        ``qpos_full_start`` (the model's full qpos) to ``q_goal`` (planned joints only)."""
+        t0 = time.perf_counter()
+        self._base = np.asarray(qpos_full_start, float).copy()
+        if self._base.shape != (self.m.nq,):
+            raise ValueError(f"qpos_full_start has shape {self._base.shape}, expected "
+                             f"({self.m.nq},)")
+        goal = np.asarray(q_goal, float).reshape(-1)
+        if goal.shape != self.lower.shape:
+            raise ValueError(f"q_goal has {goal.size} values for {self.lower.size} joints")
+        start_true = self._base[self.qadr].copy()
+        start = self._in_range("start", start_true, RANGE_TOL)
+        self._in_range("goal", goal, 1e-9)
+        self._hold(attached_body)
+        for what, q in (("start", start), ("goal", goal)):
+            hit = self._contact_at(q)
+            if hit is not None:
+                raise PlanningError(f"the {what} state is in collision: {hit}")
+
+        straight = self._segment_free(start, goal)
+        if straight:
+            path, planner = np.vstack([start, goal]), "straight"
+        else:
+            path, planner = self._rrtstar(start, goal, t0), "RRTstar"
+        path[0] = start_true
+        times, q, qd = self._timed(path)
+        elapsed = time.perf_counter() - t0
+        log.info("planned move (%s): %d waypoints, length %.3f, %.2f s long, planned in %.3f s",
+                 planner, len(path), path_length(path), times[-1], elapsed)
+        return PlannedMove(times, q, qd, path, elapsed, path_length(path), straight, planner)
+
+    def _in_range(self, what: str, q: np.ndarray, tol: float) -> np.ndarray:
+        out = (q < self.lower - tol) | (q > self.upper + tol)
+        if out.any():
+            i = int(np.flatnonzero(out)[0])
+            name = _name(self.m, mujoco.mjtObj.mjOBJ_JOINT, int(self.joints[i]))
+            raise PlanningError(f"the {what} has joint '{name}' at {q[i]:.4f}, outside its range "
+                                f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]")
+        return np.clip(q, self.lower, self.upper)
+
+    def _rrtstar(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+
+        k = len(start)
+        ou.setLogLevel(ou.LOG_NONE)
+        # OMPL seeds every new RNG (planner, sampler, simplifier) from this one: reseeding
+        # before each plan makes a plan depend only on the seed and the problem.
+        ou.RNG.setSeed(self.seed % 2147483646 + 1)  # 0 is refused by OMPL
+        space = ob.RealVectorStateSpace(k)
+        bounds = ob.RealVectorBounds(k)
+        for i in range(k):
+            bounds.setLow(i, float(self.lower[i]))
+            bounds.setHigh(i, float(self.upper[i]))
+        space.setBounds(bounds)
+        ss = og.SimpleSetup(space)
+        ss.setStateValidityChecker(lambda s: self._valid(np.array([s[i] for i in range(k)])))
+        si = ss.getSpaceInformation()
+        si.setStateValidityCheckingResolution(self.resolution / space.getMaximumExtent())
+        planner = og.RRTstar(si)
+        ss.setPlanner(planner)
+        a, b = space.allocState(), space.allocState()
+        for i in range(k):
+            a[i], b[i] = float(start[i]), float(goal[i])
+        ss.setStartAndGoalStates(a, b)
+        ss.setup()
+        pdef = ss.getProblemDefinition()
+        deadline = t0 + self.time_limit
+        first: list[int] = []
+
+        def done() -> bool:
+            if time.perf_counter() > deadline:
+                return True
+            if not first:
+                # RRT* hands its solution to the problem definition only when it stops
+                if math.isfinite(planner.bestCost().value()):
+                    first.append(planner.numIterations())
+                return False
+            return planner.numIterations() >= first[0] + ITERATIONS
+
+        ss.solve(ob.PlannerTerminationCondition(done))
+        if not pdef.hasExactSolution():
+            raise PlanningError(
+                f"no collision-free path found by RRT* within the time limit of "
+                f"{self.time_limit:g} s ({planner.numIterations()} iterations)"
+            )
+        ss.simplifySolution(0.0)  # shortcut to convergence (simplifyMax): seeded, deterministic
+        sol = ss.getSolutionPath()
+        states = sol.getStates()
+        path = np.array([[s[i] for i in range(k)] for s in states])
+        path[0], path[-1] = start, goal
+        return path
+
+    # ---- timing -----------------------------------------------------------------------
+
+    def _timed(self, path: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """TOPP-RA timing of the path, sampled every SAMPLE_DT; the sampled motion is checked
+        against collisions (a spline through too sparse points could cut a corner)."""
+        step = DENSE
+        for _ in range(4):
+            times, q, qd, fine = self._topp(path, step)
+            if all(self._valid(x) for x in fine):
+                return times, q, qd
+            step /= 4
+        raise PlanningError("the timed trajectory leaves the collision-free path")
+
+    def _topp(
+        self, path: np.ndarray, step: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        import toppra
+
+        if path_length(path) < 1e-12:
+            z = np.zeros((1, path.shape[1]))
+            return np.zeros(1), path[:1].copy(), z, path[:1].copy()
+        dense = _densify(path, step)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))])
+        geo = toppra.SplineInterpolator(s / s[-1], dense)
+        constraints = [
+            toppra.constraint.JointVelocityConstraint(np.stack([-self.vmax, self.vmax], 1)),
+            toppra.constraint.JointAccelerationConstraint(np.stack([-self.amax, self.amax], 1)),
+        ]
+        grid = np.linspace(0.0, 1.0, max(100, 2 * len(dense)) + 1)
+        algo = toppra.algorithm.TOPPRA(
+            constraints, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel"
+        )
+        traj = algo.compute_trajectory(0.0, 0.0)
+        if traj is None:
+            raise PlanningError("TOPP-RA found no timing of the path within the joint limits")
+        T = float(traj.duration)
+
+        def sample(scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            # a whole number of SAMPLE_DT: uniform samples (stretching only slows the motion)
+            n = max(2, math.ceil(T * scale / SAMPLE_DT - 1e-9))
+            scale = n * SAMPLE_DT / T
+            times = np.arange(n + 1) * SAMPLE_DT
+            u = np.minimum(times / scale, T)
+            return times, np.asarray(traj(u)), np.asarray(traj(u, 1)) / scale
+
+        # TOPP-RA holds the limits at its grid points; stretch time where the samples
+        # (their velocities and finite differences) exceed them in between.
+        scale = 1.0
+        for _ in range(8):
+            times, q, qd = sample(scale)
+            v = np.diff(q, axis=0) / SAMPLE_DT
+            acc = np.diff(q, 2, axis=0) / SAMPLE_DT**2
+            ratio = max(
+                float(np.max(np.abs(qd) / self.vmax)),
+                float(np.max(np.abs(v) / self.vmax)),
+                math.sqrt(float(np.max(np.abs(acc) / self.amax))),
+            )
+            if ratio <= 1.0:
+                break
+            scale = times[-1] / T * ratio * 1.001
+        q[0], q[-1] = path[0], path[-1]
+        qd[0], qd[-1] = 0.0, 0.0
+        # the timed motion follows the spline: check it at the planner's resolution (the
+        # spline's parameter is the densified polyline's normalised length)
+        fine = np.asarray(geo(np.linspace(0.0, 1.0, math.ceil(s[-1] / self.resolution) + 2)))
+        return times, q, qd, fine
