@@ -36,6 +36,7 @@ import logging
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -188,7 +189,15 @@ def _open_cache(cfg: MeshConfig) -> mesh_cache.MeshCache | None:
         return None
 
 
-def _ensure_loaded(ref, cfg, cache, meshes, failed, palette, notes) -> _Unusable | None:
+def _ensure_loaded(
+    ref: MeshRef,
+    cfg: MeshConfig,
+    cache: mesh_cache.MeshCache | None,
+    meshes: dict[Key, LoadedMesh],
+    failed: dict[Key, _Unusable],
+    palette: Palette,
+    notes: list[Note],
+) -> _Unusable | None:
     """Load ``ref`` into ``meshes`` unless already tried; the problem, or None."""
     if ref.path is None:
         return _Unusable("cannot be resolved to a file (unknown package or bad path)")
@@ -255,13 +264,13 @@ def _side_file(path: Path, name: str) -> bytes | None:
         return None
 
 
-def _resolver(path: Path, log: dict[str, str | None] | None = None):
+def _resolver(path: Path, log: dict[str, str | None] | None = None) -> Any:
     """trimesh's resolver for ``path``'s side files; with ``log``, recording each file
     read (name -> sha256 of its bytes, None when it could not be read)."""
     import trimesh
 
     class Recording(trimesh.resolvers.FilePathResolver):
-        def get(self, name: str):
+        def get(self, name: str) -> bytes:
             try:
                 data = super().get(name)
             except Exception:
@@ -384,7 +393,7 @@ def _collada_unit(data: bytes) -> float:
 
 
 def _own_material(
-    visual, stem: str
+    visual: Any, stem: str
 ) -> tuple[tuple[MaterialAsset, TextureAsset | None] | None, np.ndarray | None]:
     """The mesh file's material for one trimesh geometry, and its UVs."""
     from trimesh.visual import ColorVisuals, TextureVisuals
@@ -420,7 +429,7 @@ def _own_material(
     return (_material(name, rgba, texture), texture), uv
 
 
-def _rgba(color) -> RGBA:
+def _rgba(color: Any) -> RGBA:
     c = [round(float(x) / 255.0, 4) for x in np.asarray(color)[:4]]
     return (c[0], c[1], c[2], c[3] if len(c) > 3 else 1.0)
 
@@ -432,7 +441,7 @@ def _material(stem: str, rgba: RGBA, texture: TextureAsset | None) -> MaterialAs
     )
 
 
-def _texture(stem: str, image) -> TextureAsset:
+def _texture(stem: str, image: Any) -> TextureAsset:
     """8-bit RGB (RGBA if any pixel is translucent) PNG; the bytes depend on the pixels alone."""
     rgba = image.convert("RGBA")
     opaque = rgba.getchannel("A").getextrema() == (255, 255)
@@ -452,7 +461,9 @@ def _png(mode: str, size: tuple[int, int], pixels: bytes) -> bytes:
     return buf.getvalue()
 
 
-def _urdf_material(material: Material | None, notes: list[Note], link: str):
+def _urdf_material(
+    material: Material | None, notes: list[Note], link: str
+) -> tuple[tuple[MaterialAsset, TextureAsset | None], tuple[MaterialAsset, None]] | None:
     """The URDF colour as ((textured material, texture), (plain material, None)), or None.
 
     Textures need UVs: primitives (mapped by MuJoCo) and mesh parts with UVs
@@ -480,7 +491,11 @@ def _urdf_material(material: Material | None, notes: list[Note], link: str):
 
 
 def _mesh_geoms(
-    visual: Visual, loaded: LoadedMesh, urdf_mat, palette: Palette, out: _Assets
+    visual: Visual,
+    loaded: LoadedMesh,
+    urdf_mat: tuple[tuple[MaterialAsset, TextureAsset | None], tuple[MaterialAsset, None]] | None,
+    palette: Palette,
+    out: _Assets,
 ) -> list[Geom]:
     """One geom per part, placed at the visual origin."""
     stem = assets.safe_stem(loaded.path.stem)
