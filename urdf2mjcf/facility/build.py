@@ -20,6 +20,7 @@ from pathlib import Path
 from .. import api
 from .. import output as out
 from ..errors import InputError
+from . import fiducials
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
 from .recipe import Component, Pose2D, Recipe, read_yaml
@@ -142,6 +143,13 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
+        tags = [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials]
+        placed = fiducials.add_to_scene(stage / "scene.xml", tags, recipe=recipe.path)
+        compiled = report.compiled
+        if placed:  # the scene changed: compile what is written (validation compiled the rest)
+            import mujoco
+
+            compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
         data = manifest(
             stage / "scene.xml",
             recipe,
@@ -151,7 +159,8 @@ def build_facility(
             offsets,
             built,
             roles,
-            compiled=report.compiled,  # validation compiled this very scene.xml
+            compiled=compiled,  # validation compiled this very scene.xml (and our tags)
+            fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
         )
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}

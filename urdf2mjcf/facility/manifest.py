@@ -107,9 +107,11 @@ def manifest(
     components: dict[str, Path],
     roles: dict[str, dict] | None = None,
     compiled: Any = None,
+    fiducials: list[dict] | None = None,
 ) -> dict:
     """``compiled``: the model of ``scene`` the conversion validated, so it is not
-    compiled again (None: compiled here)."""
+    compiled again (None: compiled here); ``fiducials``: the tags the build added
+    (``urdf2mjcf.facility.fiducials.manifest_entries``)."""
     import mujoco
 
     m = compiled if compiled is not None else mujoco.MjModel.from_xml_path(str(scene))
@@ -193,6 +195,8 @@ def manifest(
         "actuators": actuators,
         "sensors": sensors,
         "cameras": cameras,
+        "fiducials": fiducials or [],
+        "noise": dict(recipe.noise),
     }
 
 

@@ -43,10 +43,12 @@ from typing import Any
 import yaml
 
 from ..schema import Source, load
+from .fiducials import Fiducial, check_unique, parse_fiducials
+from .noise import parse_noise
 from .root import data_path
 from .scatter import parse_rocks
 
-COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles", "free")
+COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles", "free", "fiducials")
 TOP_KEYS = (
     "components",
     "name",
@@ -59,8 +61,9 @@ TOP_KEYS = (
     "actuator_config",
     "gravcomp",
     "rocks",
+    "noise",
 )
-SECTIONS = ("components", "flags", "placements", "jitter", "simulation", "rocks")
+SECTIONS = ("components", "flags", "placements", "jitter", "simulation", "rocks", "noise")
 JITTER_KEYS = ("position", "yaw")
 JITTER_DEFAULT = "default"
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
@@ -97,6 +100,8 @@ class Component:
     free: bool = False
     """A free body (it moves in the simulation): under --seed its offset is drawn after
     those of the fixed components, so adding one never changes theirs."""
+    fiducials: tuple[Fiducial, ...] = ()
+    """AprilTags on its links (``urdf2mjcf.facility.fiducials``), ids unique in the table."""
 
 
 Ranges = Mapping[str, float] | None
@@ -121,6 +126,8 @@ class Recipe:
     """Component name -> how to place and compile it; empty: the world has none."""
     rocks: Mapping[str, Any] = field(default_factory=dict)
     """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
+    noise: Mapping[str, Any] = field(default_factory=dict)
+    """Sensor noise per channel (``urdf2mjcf.facility.noise``): settings, or False (off)."""
 
     def jitter_ranges(self, name: str) -> Ranges:
         """A component's jitter ranges: its own, else the default (missing ones are 0)."""
@@ -220,7 +227,7 @@ def _flags(data: Mapping, src: Source) -> dict:
 
 def _component(spec: Any, src: Source, where: str) -> Component:
     if not isinstance(spec, Mapping) or not {"asset", "standalone"} <= set(spec):
-        message = "needs asset and standalone (and optionally flag, prefix, roles, free)"
+        message = "needs asset and standalone (and optionally flag, prefix, roles, free, fiducials)"
         raise src.fail(where, message)
     src.known(spec, COMPONENT_KEYS, where)
     out: dict[str, Any] = {}
@@ -231,6 +238,8 @@ def _component(spec: Any, src: Source, where: str) -> Component:
         if key == "free":
             if not isinstance(value, bool):
                 raise src.fail(f"{where}.{key}", f"'{value}' is not true or false")
+        elif key == "fiducials":
+            value = parse_fiducials(value, src, f"{where}.{key}")
         elif not (isinstance(value, str) or (key in ("flag", "roles") and value is None)):
             raise src.fail(f"{where}.{key}", f"'{value}' is not text")
         out[key] = value
@@ -251,7 +260,9 @@ def _components(data: Mapping, src: Source, root: Path | None) -> dict[str, Comp
     else:
         prefix = "components."
     table = table_src.mapping(value, prefix.rstrip(".") or "components", "a component table")
-    return {name: _component(spec, table_src, prefix + name) for name, spec in table.items()}
+    out = {name: _component(spec, table_src, prefix + name) for name, spec in table.items()}
+    check_unique(((prefix + n, c.fiducials) for n, c in out.items()), table_src)
+    return out
 
 
 def _jitter(data: Mapping, src: Source, components: Mapping[str, Component]) -> dict:
@@ -332,6 +343,7 @@ def parse_recipe(
         gravcomp=gravcomp,
         description=description,
         rocks=parse_rocks(data.get("rocks"), src),
+        noise=parse_noise(data.get("noise"), src),
     )
 
 

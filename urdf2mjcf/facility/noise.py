@@ -1,0 +1,67 @@
+"""A recipe's ``noise:`` section: how unlike ideal sensors the runner's sensors are.
+
+Every channel is on unless the recipe turns it off; ``urdf2mjcf.runner.noise``
+applies them, seeded per trial. In the recipe (all keys optional; the values shown
+are the defaults)::
+
+    noise:
+      depth: {subpixel: 0.08, baseline: 0.050, focal_px: null}  # Intel D435 RMS model
+      rgb: {read_std: 2.0, shot_gain: 0.05}                      # DN of 0..255
+      exposure: {gain: 0.15, light: 0.2}                         # +- fraction per seed
+      wrench: {force_std: 0.5, torque_std: 0.02, force_bias: 2.0, torque_bias: 0.1}
+
+``noise: false`` turns every channel off, ``depth: false`` (and so on) one of them.
+The models and their sources are in docs/facility.md ("Sensor noise").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..schema import Source
+
+DEFAULTS: dict[str, dict[str, float | None]] = {
+    # Depth RMS error = z^2 * subpixel / (focal_px * baseline) (Grunnet-Jepsen et al.,
+    # "Tuning depth cameras for best performance", Intel RealSense white paper): the
+    # D435's 50 mm baseline and its typical subpixel RMS of 0.08; focal_px null: the
+    # focal length of the camera that renders the depth image.
+    "depth": {"subpixel": 0.08, "baseline": 0.050, "focal_px": None},
+    # Read noise (Gaussian, DN) plus shot noise (variance shot_gain * signal, DN^2).
+    "rgb": {"read_std": 2.0, "shot_gain": 0.05},
+    # Per seed: the image gain in 1 +- gain and every light's intensity in 1 +- light.
+    "exposure": {"gain": 0.15, "light": 0.2},
+    # White noise (std per axis) and a bias per axis drawn once per seed (std).
+    "wrench": {"force_std": 0.5, "torque_std": 0.02, "force_bias": 2.0, "torque_bias": 0.1},
+}
+CHANNELS = tuple(DEFAULTS)
+
+
+def parse_noise(value: Any, src: Source, key: str = "noise") -> dict[str, dict | bool]:
+    """The resolved ``noise:`` section: channel -> its settings (defaults filled in) or
+    False (off). None (no section): every channel on with its defaults."""
+    if value is None or value is True:
+        value = {}
+    if value is False:
+        return {name: False for name in CHANNELS}
+    section = src.mapping(value, key, "a mapping of sensor channels, or false (no noise)")
+    src.known(section, CHANNELS, key)
+    out: dict[str, dict | bool] = {}
+    for name, defaults in DEFAULTS.items():
+        given = section.get(name, {})
+        where = f"{key}.{name}"
+        if given is False:
+            out[name] = False
+            continue
+        given = src.mapping(None if given is True else given, where, "a mapping or false")
+        src.known(given, defaults, where)
+        settings: dict[str, float | None] = dict(defaults)
+        for field, v in given.items():
+            if v is None and defaults[field] is None:
+                continue
+            x = src.number(v, f"{where}.{field}")
+            if x < 0 or (x == 0 and field in ("baseline", "focal_px")):
+                bound = "> 0" if field in ("baseline", "focal_px") else ">= 0"
+                raise src.fail(f"{where}.{field}", f"must be {bound}")
+            settings[field] = x
+        out[name] = settings
+    return out
