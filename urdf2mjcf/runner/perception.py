@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .noise import SensorNoise
+
 
 @dataclass
 class Segment:
@@ -86,10 +88,17 @@ def backproject(
 
 
 class Camera:
-    """Offscreen RGB and depth of one model camera."""
+    """Offscreen RGB and depth of one model camera; with ``noise``, as the real sensor
+    reads them (``urdf2mjcf.runner.noise``)."""
 
-    def __init__(self, m: mujoco.MjModel, cam: int, size: tuple[int, int] | None = None):
-        self.m, self.cam = m, cam
+    def __init__(
+        self,
+        m: mujoco.MjModel,
+        cam: int,
+        size: tuple[int, int] | None = None,
+        noise: SensorNoise | None = None,
+    ):
+        self.m, self.cam, self.noise = m, cam, noise
         h, w = size if size else (int(m.cam_resolution[cam][1]), int(m.cam_resolution[cam][0]))
         if h <= 0 or w <= 0:
             h, w = 480, 640
@@ -105,6 +114,9 @@ class Camera:
         r.update_scene(d, camera=self.cam)
         depth = r.render().copy()
         r.disable_depth_rendering()
+        if self.noise is not None:
+            fovy = float(self.m.cam_fovy[self.cam])
+            rgb, depth = self.noise.rgb(rgb), self.noise.depth(depth, fovy)
         return rgb, depth
 
     def close(self) -> None:
