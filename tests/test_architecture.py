@@ -41,7 +41,7 @@ def _layer(module: str) -> str:
         return head
     if head in ("api", "report"):
         return "api"
-    if head in ("cli", "__main__"):
+    if head in ("cli", "__main__", "batch"):  # batch: a command over api and executors
         return "cli"
     return "support"
 

@@ -327,11 +327,16 @@ def run_command(
 
 
 def urdf2mjcf_main() -> None:
-    # `urdf2mjcf cache ...` manages the cache; anything else is a conversion, whose
-    # first argument is the SOURCE file (a file named 'cache' is given as ./cache).
+    # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots;
+    # anything else is a conversion, whose first argument is the SOURCE file (a file
+    # named 'cache' or 'batch' is given as ./cache, ./batch).
     args = sys.argv[1:]
     if args[:1] == ["cache"]:
         run_command(cache_group, args[1:], prog_name="urdf2mjcf cache")
+    if args[:1] == ["batch"]:
+        from .batch import batch_command
+
+        run_command(batch_command, args[1:], prog_name="urdf2mjcf batch")
     run_command(urdf2mjcf_command)
 
 

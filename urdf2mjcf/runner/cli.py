@@ -8,12 +8,17 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
+
+from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
+from .executors import EXECUTORS, Kind, import_ray
 
 if TYPE_CHECKING:
     from .load import Facility
@@ -95,7 +100,23 @@ def _frames_folder(
     "(pip install 'mjcf-forge[ros]')",
 )
 @click.option(
-    "--workers", type=click.IntRange(min=1), default=None, help="parallel processes for --trials"
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="parallel trials: processes of the local pool, or CPUs of a Ray instance started here",
+)
+@click.option(
+    "--executor",
+    type=click.Choice(EXECUTORS),
+    default="local",
+    show_default=True,
+    help="where --trials run: the local process pool, or Ray (pip install 'mjcf-forge[ray]')",
+)
+@click.option(
+    "--address",
+    default=None,
+    help="Ray cluster to run --trials on (ray start --head prints it; 'auto': the local one); "
+    "default: a Ray instance started here",
 )
 @click.option(
     "--overwrite",
@@ -112,6 +133,8 @@ def facility_demo_command(
     frames: Path | None,
     record: Path | None,
     workers: int | None,
+    executor: Kind,
+    address: str | None,
     overwrite: bool,
 ) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
@@ -132,6 +155,14 @@ def facility_demo_command(
     check_names(spec, waypoints, fac)
     if report:
         out.check_file(report, overwrite, GENERATOR)
+    if address and executor != "ray":
+        raise click.UsageError("--address needs --executor ray")
+    if address and workers:
+        raise click.UsageError("--workers sizes a pool started here, not the cluster at --address")
+    if trials and report:
+        check_plot(plot_path(report), report, overwrite, GENERATOR)
+    if trials and executor == "ray":
+        import_ray()  # a missing Ray is bad input, said before anything runs
     if record:
         if trials:
             raise click.UsageError(
@@ -148,37 +179,92 @@ def facility_demo_command(
         load_recipe(trial_recipe)  # here, not in each trial's process
     with _frames_folder(frames, previous, overwrite) as staged:
         if trial_recipe is not None:
-            result, success = _trials(trial_recipe, root, waypoints, seed, trials, workers, staged)
+            run = TrialRun(trial_recipe, root, waypoints, workers, executor, address, scene)
+            result, success = _trials(run, seed, trials, staged)
         else:
             result, success = _once(fac, spec, staged, record)
     if report:
+        if trials:
+            plot_outcomes(result["aggregate"], plot_path(report))
+            result = {**result, "plot": plot_path(report).name}
         out.write_json(report, result, GENERATOR)
     sys.exit(0 if success else 1)
 
 
-def _trials(
-    recipe: Path,
-    root: Path,
-    waypoints: Path,
-    seed: int,
-    trials: int,
-    workers: int | None,
-    frames: Path | None,
-) -> tuple[dict, bool]:
+@dataclass(frozen=True)
+class TrialRun:
+    """What every trial of one ``--trials`` run shares, and how the command was called."""
+
+    recipe: Path
+    root: Path
+    waypoints: Path
+    workers: int | None
+    executor: Kind
+    address: str | None
+    scene: Path
+
+    def replay(self, seed: int) -> list[str]:
+        """The command line that runs the trial of ``seed`` again, alone, with its pictures."""
+        return [
+            "facility-demo",
+            str(self.scene.resolve()),
+            "--trials",
+            "1",
+            "--seed",
+            str(seed),
+            "--recipe",
+            str(self.recipe.resolve()),
+            "--waypoints",
+            str(self.waypoints.resolve()),
+            "--frames",
+            f"replay-seed-{seed}",
+        ]
+
+
+def _trial_line(r: dict) -> str:
+    where = "" if r["ok"] else f" at '{r['failed_step']}'"
+    return (
+        f"seed {r['seed']:>4}: {'success' if r['ok'] else 'FAIL'}{where}: {r['message']}"
+        f"  ({r['trial_wall']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
+    )
+
+
+def _trials(run: TrialRun, seed: int, trials: int, frames: Path | None) -> tuple[dict, bool]:
     from .trials import run_trials
 
     seeds = list(range(seed, seed + trials))
-    results = run_trials(recipe, root, waypoints, seeds, workers=workers, frames=frames)
-    ok = sum(r["ok"] for r in results)
-    for r in results:
-        where = "" if r["ok"] else f" at '{r['failed_step']}'"
-        click.echo(
-            f"seed {r['seed']:>4}: {'success' if r['ok'] else 'FAIL'}{where}: {r['message']}"
-            f"  ({r['wall_time']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
-        )
-    click.echo(f"success rate: {ok}/{len(results)} ({100 * ok / len(results):.0f} %)")
-    result = {"trials": results, "successes": ok, "success_rate": ok / len(results)}
-    return result, ok == len(results)
+    finished = 0
+
+    def progress(r: dict) -> None:  # on stderr as each trial ends, in the order they end
+        nonlocal finished
+        finished += 1
+        click.echo(f"[{finished}/{trials}] {_trial_line(r)}", err=True)
+
+    start = time.perf_counter()
+    results = run_trials(
+        run.recipe,
+        run.root,
+        run.waypoints,
+        seeds,
+        workers=run.workers,
+        frames=frames,
+        executor=run.executor,
+        address=run.address,
+        on_done=progress,
+    )
+    agg = aggregate(results, wall_time=time.perf_counter() - start, replay=run.replay)
+    for r in results:  # in seed order, whichever worker ran what
+        click.echo(_trial_line(r))
+    for line in summary_lines(agg):
+        click.echo(line)
+    result = {
+        "trials": results,
+        "successes": agg["successes"],
+        "success_rate": agg["success_rate"],
+        "aggregate": agg,
+        "executor": run.executor,
+    }
+    return result, agg["successes"] == len(results)
 
 
 def _once(

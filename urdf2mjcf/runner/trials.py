@@ -1,43 +1,92 @@
 """Seeded trials: each rebuilds the facility with ``build_facility(..., seed=...)``
 (the recipe's jitter moves the CTB within 5 cm / 15 deg and the mockups within
-2 cm / 1 deg) into a temporary folder and runs the demo there, in parallel processes."""
+2 cm / 1 deg) into a temporary folder of its worker and runs the demo there.
+
+Trials run on an executor (:mod:`.executors`: the local process pool or a Ray
+cluster), one job per seed. A trial depends only on its seed and its inputs,
+never on the worker that ran it: it builds into a folder of its own, the caches
+it shares with other workers are written atomically (``urdf2mjcf.cache``), and
+its pictures come back as bytes for the caller to write, so a worker on another
+machine needs no shared folder for its output."""
 
 from __future__ import annotations
 
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
+from .executors import Kind, run_jobs
 
-def _trial(args: tuple) -> dict:
-    recipe_path, root, seed, waypoints, frames = args
+
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial: paths as strings, the same on every worker (see docs/scale.md)."""
+
+    recipe: str
+    root: str
+    waypoints: str
+    seed: int
+    frames: bool
+    """Whether to save the demo's pictures (returned as bytes under ``"frames"``)."""
+
+
+def run_trial(job: TrialJob) -> dict:
+    """The demo's result (``DemoResult.to_json()``) for one seed, with ``seed``, the jitter
+    ``offsets``, the demo's ``log``, ``trial_wall`` (build and demo, seconds) and
+    ``frames`` ({file name: PNG bytes}). A trial that raises is a failed trial, at step
+    ``"error"``, not the end of the others."""
     from .. import headless
 
-    headless.configure()
+    headless.configure()  # before mujoco is imported in this worker
+    from .. import output as out
     from ..facility.build import build_facility
     from ..facility.recipe import load_recipe
     from .demo import run_demo
 
+    start = time.perf_counter()
+    lines: list[str] = []
     with tempfile.TemporaryDirectory(prefix="imetro-trial-") as tmp:
-        rep = build_facility(
-            load_recipe(Path(recipe_path)),
-            Path(tmp) / "facility",
-            root=Path(root),
-            seed=seed,
-            components=False,
+        frames = Path(tmp) / "frames" if job.frames else None
+        offsets = None
+        try:
+            rep = build_facility(
+                load_recipe(Path(job.recipe)),
+                Path(tmp) / "facility",
+                root=Path(job.root),
+                seed=job.seed,
+                components=False,
+                workers=1,  # one CPU per trial: the executor runs the trials side by side
+            )
+            offsets = rep.manifest.get("offsets")
+            res = run_demo(rep.output, job.waypoints, frames=frames, log=lines.append)
+            result = res.to_json()
+        except Exception as exc:  # a crash fails this seed, reported with the others
+            lines.extend(traceback.format_exc().splitlines())
+            result = {
+                "ok": False,
+                "steps": [],
+                "verdict": None,
+                "sim_time": 0.0,
+                "wall_time": time.perf_counter() - start,
+                "failed_step": "error",
+                "message": f"{type(exc).__name__}: {exc}",
+                "handle": None,
+                "real_time_factor": None,
+            }
+        pictures = (
+            {rel: (frames / rel).read_bytes() for rel in out.list_files(frames)}
+            if frames is not None and frames.is_dir()
+            else {}
         )
-        lines: list[str] = []
-        res = run_demo(
-            rep.output,
-            waypoints,
-            frames=Path(frames) / f"seed-{seed}" if frames else None,
-            log=lines.append,
-        )
-        out = res.to_json()
-        out["seed"] = seed
-        out["offsets"] = rep.manifest.get("offsets")
-        out["log"] = lines
-        return out
+    result["seed"] = job.seed
+    result["offsets"] = offsets
+    result["log"] = lines
+    result["trial_wall"] = time.perf_counter() - start
+    result["frames"] = pictures
+    return result
 
 
 def run_trials(
@@ -48,16 +97,35 @@ def run_trials(
     *,
     workers: int | None = None,
     frames: Path | None = None,
+    executor: Kind = "local",
+    address: str | None = None,
+    on_done: Callable[[dict], None] | None = None,
 ) -> list[dict]:
+    """One trial per seed on ``executor``; results in the order of ``seeds``.
+
+    With ``frames``, each trial's pictures are written to ``frames/seed-S/`` here, as
+    the trial ends. ``on_done(result)`` is called as each trial ends (progress)."""
     jobs = [
-        (str(recipe_path), str(root), s, str(waypoints), str(frames) if frames else None)
+        TrialJob(
+            str(Path(recipe_path).resolve()),
+            str(Path(root).resolve()),
+            str(Path(waypoints).resolve()),
+            s,
+            frames is not None,
+        )
         for s in seeds
     ]
-    if len(jobs) == 1:
-        return [_trial(jobs[0])]
-    import multiprocessing as mp
 
-    with ProcessPoolExecutor(
-        max_workers=workers or min(len(jobs), 8), mp_context=mp.get_context("spawn")
-    ) as pool:
-        return list(pool.map(_trial, jobs))
+    def done(_: int, result: dict) -> None:
+        pictures = result.pop("frames", {})
+        if frames is not None:
+            for rel, data in sorted(pictures.items()):
+                path = frames / f"seed-{result['seed']}" / rel
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+        if on_done:
+            on_done(result)
+
+    return run_jobs(
+        run_trial, jobs, executor=executor, workers=workers, address=address, on_done=done
+    )
