@@ -97,6 +97,46 @@ def _components(
     return out
 
 
+MECHANISM_KEYS = ("holds", "lock", "locked", "released")
+
+
+def _mechanisms(
+    m: mujoco.MjModel, recipe: Recipe, root: Path, present: list[str]
+) -> list[dict]:
+    """The mechanisms of every component present, from the file its table entry names
+    (``mechanisms``: ``NAME: {holds, lock, locked, released}``, joint names without the
+    prefix): names prefixed, each joint checked against the compiled model. Errors name
+    the file, the key and its line."""
+    import mujoco
+
+    from ..schema import load
+    from .root import data_path
+
+    out = []
+    for name in present:
+        comp = recipe.components.get(name)
+        if comp is None or not comp.mechanisms:
+            continue
+        data, src = load(data_path(root, recipe.path, comp.mechanisms), "mechanisms file")
+        for mech, spec in src.mapping(data, "mechanisms", "a mapping of mechanism names").items():
+            spec = src.mapping(spec, mech, "{holds, lock, locked, released}")
+            src.known(spec, MECHANISM_KEYS, mech)
+            entry: dict[str, Any] = {"name": comp.prefix + mech, "component": name}
+            for key in MECHANISM_KEYS:
+                if key not in spec:
+                    raise src.fail(f"{mech}.{key}", "is required")
+                if key in ("holds", "lock"):
+                    joint = comp.prefix + str(src.text(spec[key], f"{mech}.{key}", required=True))
+                    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint) < 0:
+                        message = f"no joint '{joint}' in the facility (component '{name}')"
+                        raise src.fail(f"{mech}.{key}", message)
+                    entry[key] = joint
+                else:
+                    entry[key] = src.number(spec[key], f"{mech}.{key}")
+            out.append(entry)
+    return out
+
+
 def manifest(
     scene: Path,
     recipe: Recipe,
@@ -197,6 +237,7 @@ def manifest(
         "cameras": cameras,
         "fiducials": fiducials or [],
         "noise": dict(recipe.noise),
+        "mechanisms": _mechanisms(m, recipe, root, list(placements)),
     }
 
 

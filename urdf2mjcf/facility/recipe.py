@@ -48,7 +48,9 @@ from .noise import parse_noise
 from .root import data_path
 from .scatter import parse_rocks
 
-COMPONENT_KEYS = ("asset", "standalone", "flag", "prefix", "roles", "free", "fiducials")
+COMPONENT_KEYS = (
+    "asset", "standalone", "flag", "prefix", "roles", "free", "fiducials", "mechanisms"
+)
 TOP_KEYS = (
     "components",
     "name",
@@ -100,6 +102,10 @@ class Component:
     free: bool = False
     """A free body (it moves in the simulation): under --seed its offset is drawn after
     those of the fixed components, so adding one never changes theirs."""
+    mechanisms: str | None = None
+    """A YAML file (a path as the recipe's others) declaring the asset's mechanisms: each
+    latch, the joint it holds and its locked and released values, names without the
+    prefix; facility.json lists them prefixed (``manifest.py``)."""
     fiducials: tuple[Fiducial, ...] = ()
     """AprilTags on its links (``urdf2mjcf.facility.fiducials``), ids unique in the table."""
 
@@ -240,7 +246,9 @@ def _component(spec: Any, src: Source, where: str) -> Component:
                 raise src.fail(f"{where}.{key}", f"'{value}' is not true or false")
         elif key == "fiducials":
             value = parse_fiducials(value, src, f"{where}.{key}")
-        elif not (isinstance(value, str) or (key in ("flag", "roles") and value is None)):
+        elif not (
+            isinstance(value, str) or (key in ("flag", "roles", "mechanisms") and value is None)
+        ):
             raise src.fail(f"{where}.{key}", f"'{value}' is not text")
         out[key] = value
     return Component(**out)
