@@ -3,7 +3,7 @@
 Two checks, both read from the source tree itself: every module of
 ``urdf2mjcf/`` is listed in docs/architecture.md's module table (and every
 listed module exists), and imports point one way:
-support modules -> passes -> api -> facility -> runner -> cli.
+support modules -> passes -> api -> facility -> runner -> envs -> cli.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ PACKAGE = ROOT / "urdf2mjcf"
 DOC = ROOT / "docs" / "architecture.md"
 
 # Layers, lowest first; a module may import its own layer and the ones below.
-LAYERS = ("support", "passes", "api", "facility", "runner", "cli")
+LAYERS = ("support", "passes", "api", "facility", "runner", "envs", "cli")
 
 
 def _modules() -> dict[str, Path]:
@@ -37,7 +37,7 @@ def _layer(module: str) -> str:
     if len(parts) == 1:
         return "support"  # the package's own __init__: lazy re-exports only
     head = parts[1]
-    if head in ("passes", "facility", "runner"):
+    if head in ("passes", "facility", "runner", "envs"):  # envs: Gymnasium over facility, runner
         return head
     if head in ("api", "report"):
         return "api"
