@@ -117,13 +117,16 @@ def parse_fiducials(value: Any, src: Source, where: str) -> tuple[Fiducial, ...]
     return tuple(out)
 
 
-def check_unique(tables: Iterable[tuple[str, Sequence[Fiducial]]], src: Source) -> None:
-    """Every id once in a component table (``tables``: component name -> its tags)."""
+def check_unique(
+    tables: Iterable[tuple[str, Sequence[Fiducial]]], src: Source, prefix: str = ""
+) -> None:
+    """Every id once in a component table (``tables``: component name -> its tags;
+    ``prefix``: of the table's keys in ``src``, such as ``components.``)."""
     seen: dict[int, str] = {}
     for name, tags in tables:
         for i, tag in enumerate(tags):
             if tag.id in seen:
-                key = f"{name}.fiducials[{i}].id"
+                key = f"{prefix}{name}.fiducials[{i}].id"
                 raise src.fail(key, f"tag id {tag.id} is already used by '{seen[tag.id]}'")
             seen[tag.id] = name
 
@@ -195,8 +198,13 @@ def add_to_scene(
         asset = etree.Element("asset")
         _indent(root, asset, list(root).index(worldbody) if worldbody is not None else len(root))
     visual_class = any(d.get("class") == "visual" for d in root.iter("default"))
-    folder = scene.parent / "assets"
-    folder.mkdir(exist_ok=True)
+    # Textures go where the model looks for them: its texturedir, else assets/.
+    compiler = root.find("compiler")
+    texdir = None
+    if compiler is not None:
+        texdir = compiler.get("texturedir") or compiler.get("assetdir")
+    folder = scene.parent / (texdir or "assets")
+    folder.mkdir(parents=True, exist_ok=True)
     placed = []
     for component, prefix, tag in tags:
         body_name = "world" if tag.link == "world" else prefix + tag.link
@@ -212,6 +220,7 @@ def add_to_scene(
         png = tag_png(tag.id)
         file = content_name(name, png) + ".png"
         (folder / file).write_bytes(png)
+        file = file if texdir else f"assets/{file}"
         texture = etree.Element("texture", name=name, type="2d", file=file)
         # No specular highlight: a glossy tag washes out under the headlight.
         material = etree.Element("material", name=name, texture=name, specular="0")

@@ -269,7 +269,7 @@ def _components(data: Mapping, src: Source, root: Path | None) -> dict[str, Comp
         prefix = "components."
     table = table_src.mapping(value, prefix.rstrip(".") or "components", "a component table")
     out = {name: _component(spec, table_src, prefix + name) for name, spec in table.items()}
-    check_unique(((prefix + n, c.fiducials) for n, c in out.items()), table_src)
+    check_unique(((n, c.fiducials) for n, c in out.items()), table_src, prefix)
     return out
 
 
