@@ -222,3 +222,63 @@ def dh_flange(q, d, a, alpha) -> np.ndarray:
             ]
         )
     return t
+
+
+# ------------------------------------------------------------------ latches
+
+
+def hold(m: mujoco.MjModel, d: mujoco.MjData, joint: str, target: float) -> None:
+    """A firm hand on ``joint``: at ``target`` and at rest before each step (the step's
+    constraints, the couplings that a latch drives among them, act from there)."""
+    d.qpos[m.joint(joint).qposadr[0]] = target
+    d.qvel[m.joint(joint).dofadr[0]] = 0.0
+
+
+def opening_sign(m: mujoco.MjModel, d: mujoco.MjData, joint: str) -> float:
+    """+1 when ``joint`` opens towards its upper limit (it rests nearer the lower), else -1."""
+    lo, hi = m.joint(joint).range
+    q = d.qpos[m.joint(joint).qposadr[0]]
+    return 1.0 if hi - q >= q - lo else -1.0
+
+
+def push_latched(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    holds: str,
+    lock: str,
+    value: float,
+    force: float,
+    seconds: float = 1.0,
+    settle: float = 0.3,
+) -> np.ndarray:
+    """The lock held at ``value`` (set, then ``settle`` s for what it drives to follow),
+    then ``force`` (N m or N, in the opening direction) on ``holds`` for ``seconds``:
+    how far ``holds`` moved from where it was, over time (positive: opening)."""
+    sign = opening_sign(m, d, holds)
+    d.qpos[m.joint(lock).qposadr[0]] = value
+    mujoco.mj_forward(m, d)
+    for _ in range(int(round(settle / m.opt.timestep))):
+        hold(m, d, lock, value)
+        mujoco.mj_step(m, d)
+    adr, dof = m.joint(holds).qposadr[0], m.joint(holds).dofadr[0]
+    start = float(d.qpos[adr])
+    trace = []
+    for _ in range(int(round(seconds / m.opt.timestep))):
+        hold(m, d, lock, value)
+        d.qfrc_applied[dof] = sign * force
+        mujoco.mj_step(m, d)
+        trace.append(sign * (float(d.qpos[adr]) - start))
+    d.qfrc_applied[:] = 0.0
+    return np.array(trace)
+
+
+def free_swing(m: mujoco.MjModel, d: mujoco.MjData, joint: str, force: float, t: float) -> float:
+    """Independent reference: how far a free joint of the model's inertia (at the current
+    pose, with armature), damping b and friction loss f moves in ``t`` s under a constant
+    ``force``: I q'' = F - f - b q', from rest: (F - f) / b (t - tau (1 - exp(-t / tau)))."""
+    dof = m.joint(joint).dofadr[0]
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    inertia, b, f = full[dof, dof], m.dof_damping[dof], m.dof_frictionloss[dof]
+    tau = inertia / b
+    return float((force - f) / b * (t - tau * (1 - np.exp(-t / tau))))
