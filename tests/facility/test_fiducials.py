@@ -135,15 +135,28 @@ def _recipe_text(tmp_path: Path, table: str) -> Path:
 @pytest.mark.parametrize(
     ("tags", "key", "message"),
     [
-        ("[{id: 3, link: base, xyz: [0, 0, 0], size: 0.1}, {id: 3, link: top, xyz: [0, 0, 1], "
-         "size: 0.1}]", "box.fiducials[1].id", "tag id 3 is already used by 'box'"),
-        ("[{id: 587, link: base, xyz: [0, 0, 0], size: 0.1}]", "box.fiducials[0].id",
-         "is not a tag36h11 id (0 .. 586)"),
-        ("[{id: 1, link: base, xyz: [0, 0], size: 0.1}]", "box.fiducials[0].xyz",
-         "is not three numbers"),
+        (
+            "[{id: 3, link: base, xyz: [0, 0, 0], size: 0.1}, {id: 3, link: top, xyz: [0, 0, 1], "
+            "size: 0.1}]",
+            "box.fiducials[1].id",
+            "tag id 3 is already used by 'box'",
+        ),
+        (
+            "[{id: 587, link: base, xyz: [0, 0, 0], size: 0.1}]",
+            "box.fiducials[0].id",
+            "is not a tag36h11 id (0 .. 586)",
+        ),
+        (
+            "[{id: 1, link: base, xyz: [0, 0], size: 0.1}]",
+            "box.fiducials[0].xyz",
+            "is not three numbers",
+        ),
         ("[{id: 1, link: base, xyz: [0, 0, 0], size: 0}]", "box.fiducials[0].size", "> 0"),
-        ("[{id: 1, link: base, xyz: [0, 0, 0], size: 0.1, colour: red}]",
-         "box.fiducials[0].colour", "unknown key"),
+        (
+            "[{id: 1, link: base, xyz: [0, 0, 0], size: 0.1, colour: red}]",
+            "box.fiducials[0].colour",
+            "unknown key",
+        ),
         ("{id: 1}", "box.fiducials", "a list of tags"),
     ],
 )

@@ -123,12 +123,14 @@ def _fit_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _depth_points(
-    corners: np.ndarray, depth: np.ndarray, camera: CameraModel, shrink: float = 0.8
+    corners: np.ndarray, depth: np.ndarray, camera: CameraModel, scale: float = 1.15
 ) -> np.ndarray:
-    """Camera-frame (OpenCV) points of the depth pixels inside the tag's quad, shrunk
-    about its centre so no pixel straddles the tag's edge."""
+    """Camera-frame (OpenCV) points of the depth pixels on the tag's plate: its quad
+    scaled about the centre by ``scale``, into the white border (the printed tag is
+    1.25 times the black square) but clear of the plate's edge, where pixels straddle
+    the surface behind. More pixels and a longer lever: a better normal."""
     centre = corners.mean(axis=0)
-    quad = centre + shrink * (corners - centre)
+    quad = centre + scale * (corners - centre)
     mask = np.zeros(depth.shape[:2], np.uint8)
     cv2.fillConvexPoly(mask, np.round(quad * 16).astype(np.int32), 1, cv2.LINE_8, 4)
     vs, us = np.nonzero(mask)
