@@ -53,12 +53,18 @@ log = logging.getLogger(__name__)
 
 SAMPLE_DT = 0.01
 """Spacing of the timed trajectory's samples (s)."""
-ITERATIONS = 100
+ITERATIONS = 25
 """RRT* iterations once a solution exists (the planner refines it meanwhile)."""
 DENSE = 0.05
 """Waypoint spacing along each path segment for the timing spline (joint-space norm)."""
 HINGE, SLIDE, FREE = (int(t) for t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE,
                                        mujoco.mjtJoint.mjJNT_FREE))
+PAD = 0.005
+"""Clearance (m) kept by the planned path's checked states away from its two ends, so
+that the motion between two checks (``resolution`` apart) does not graze an obstacle."""
+PAD_RAMP = 0.1
+"""Joint-space distance from the start or goal over which the clearance grows from 0 to
+PAD: a start or goal close to an object (a grasp) stays reachable."""
 RANGE_TOL = 1e-3
 """A start this far past a joint's range (rad or m) counts as at the limit."""
 
@@ -145,11 +151,9 @@ class JointPlanner:
     ) -> None:
         import toppra  # noqa: F401  (slow first import, here rather than in a move's timing)
 
-        m = model
-        if margin > 0:
-            # MuJoCo reports a pair only closer than its geoms' margin: widen it on a copy.
-            m = copy.deepcopy(model)
-            m.geom_margin[:] = np.maximum(m.geom_margin, margin)
+        # MuJoCo reports a pair only closer than its geoms' margin: widen it on a copy.
+        m = copy.deepcopy(model)
+        m.geom_margin[:] = np.maximum(m.geom_margin, margin + PAD)
         self.m = m
         self.d = mujoco.MjData(m)
         self.joints = np.asarray(joint_ids, int)
@@ -187,6 +191,7 @@ class JointPlanner:
         self._held: tuple[int, int, np.ndarray, np.ndarray] | None = None
         self._robot_now = self.robot
         self._allowed_now = self.allowed
+        self._ends: tuple[np.ndarray, np.ndarray] | None = None
 
     # ---- model facts ----------------------------------------------------------------
 
@@ -238,8 +243,8 @@ class JointPlanner:
             mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
 
-    def _first_contact(self) -> _Contact | None:
-        """The closest counted contact of the private data's current state, or None."""
+    def _first_contact(self, limit: float) -> _Contact | None:
+        """The closest counted contact closer than ``limit`` in the private data, or None."""
         m, d = self.m, self.d
         n = d.ncon
         if n == 0:
@@ -248,7 +253,7 @@ class JointPlanner:
         dist = d.contact.dist[:n]
         b1, b2 = m.geom_bodyid[geoms[:, 0]], m.geom_bodyid[geoms[:, 1]]
         counted = (
-            (dist < self.margin)
+            (dist < limit)
             & (self._robot_now[b1] | self._robot_now[b2])
             & ~self.ignored[b1]
             & ~self.ignored[b2]
@@ -265,11 +270,21 @@ class JointPlanner:
 
     def _contact_at(self, q: np.ndarray) -> _Contact | None:
         self._set(np.asarray(q, float))
-        return self._first_contact()
+        return self._first_contact(self.margin)
 
     def _valid(self, q: np.ndarray) -> bool:
+        """A state of the path being planned: clear by ``margin``, plus PAD away from the
+        path's ends (the ramp starts at 0 so the ends themselves need only ``margin``)."""
+        pad = 0.0
+        if self._ends is not None:
+            near = min(float(np.linalg.norm(q - e)) for e in self._ends)
+            pad = PAD * min(1.0, near / PAD_RAMP)
         self._set(q)
-        return self._first_contact() is None
+        return self._first_contact(self.margin + pad) is None
+
+    def _free(self, q: np.ndarray) -> bool:
+        self._set(q)
+        return self._first_contact(self.margin) is None
 
     def is_free(self, qpos_full: np.ndarray) -> bool:
         """True when the full state ``qpos_full`` has no counted contact (no held body)."""
@@ -277,7 +292,7 @@ class JointPlanner:
         self._base, self._held = np.asarray(qpos_full, float).copy(), None
         self._robot_now, self._allowed_now = self.robot, self.allowed
         try:
-            return self._valid(self._base[self.qadr])
+            return self._free(self._base[self.qadr])
         finally:
             self._base, self._held, self._robot_now, self._allowed_now = saved
 
@@ -338,11 +353,15 @@ class JointPlanner:
             if hit is not None:
                 raise PlanningError(f"the {what} state is in collision: {hit}")
 
-        straight = self._segment_free(start, goal)
-        if straight:
-            path, planner = np.vstack([start, goal]), "straight"
-        else:
-            path, planner = self._rrtstar(start, goal, t0), "RRTstar"
+        self._ends = (start, goal)
+        try:
+            straight = self._segment_free(start, goal)
+            if straight:
+                path, planner = np.vstack([start, goal]), "straight"
+            else:
+                path, planner = self._rrtstar(start, goal, t0), "RRTstar"
+        finally:
+            self._ends = None
         path[0] = start_true
         times, q, qd = self._timed(path)
         elapsed = time.perf_counter() - t0
@@ -421,7 +440,7 @@ class JointPlanner:
         step = DENSE
         for _ in range(4):
             times, q, qd, fine = self._topp(path, step)
-            if all(self._valid(x) for x in fine):
+            if all(self._free(x) for x in fine):
                 return times, q, qd
             step /= 4
         raise PlanningError("the timed trajectory leaves the collision-free path")
@@ -441,10 +460,9 @@ class JointPlanner:
             toppra.constraint.JointVelocityConstraint(np.stack([-self.vmax, self.vmax], 1)),
             toppra.constraint.JointAccelerationConstraint(np.stack([-self.amax, self.amax], 1)),
         ]
-        grid = np.linspace(0.0, 1.0, max(100, 2 * len(dense)) + 1)
-        algo = toppra.algorithm.TOPPRA(
-            constraints, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel"
-        )
+        # toppra's own grid (refined where the spline bends) holds the limits better than a
+        # uniform one at the path's corners
+        algo = toppra.algorithm.TOPPRA(constraints, geo, parametrizer="ParametrizeConstAccel")
         traj = algo.compute_trajectory(0.0, 0.0)
         if traj is None:
             raise PlanningError("TOPP-RA found no timing of the path within the joint limits")

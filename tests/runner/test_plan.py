@@ -1,0 +1,228 @@
+"""Collision-free joint moves (runner/plan.py) on a small arm written here, with MuJoCo's
+own collision detection (mj_forward on a separate MjData) as the independent check.
+
+The arm: two links turning about z above the floor (0.5 m and 0.4 m). A post stands
+0.75 m out on +x: sweeping the stretched arm from one side to the other (the straight
+joint interpolation) hits it; the arm has to fold its elbow to pass it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from urdf2mjcf.errors import ConversionError, PlanningError
+from urdf2mjcf.runner.plan import JointPlanner, PlannedMove
+
+ROOT = Path(__file__).resolve().parents[2]
+
+ARM = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="3 3 0.1"/>
+    <body name="base" pos="0 0 0.2">
+      <geom name="base" type="cylinder" size="0.05 0.05"/>
+      <body name="link1" pos="0 0 0.1">
+        <joint name="j1" type="hinge" axis="0 0 1" range="-2.5 2.5"/>
+        <geom name="link1" type="capsule" fromto="0 0 0 0.5 0 0" size="0.03"/>
+        <body name="link2" pos="0.5 0 0">
+          <joint name="j2" type="hinge" axis="0 0 1" range="-2.8 2.8"/>
+          <geom name="link2" type="capsule" fromto="0 0 0 0.4 0 0" size="0.03"/>
+        </body>
+      </body>
+    </body>
+    <body name="post" pos="{post} 0 0.3">
+      <geom name="post" type="box" size="0.05 0.05 0.2"/>
+    </body>
+    {extra}
+  </worldbody>
+</mujoco>
+"""
+
+# a box held at the arm's tip: the arm alone clears a post 1.05 m out, the box does not
+HELD = """
+    <body name="held" pos="{x} 0 0.3">
+      <freejoint name="held"/>
+      <geom name="held" type="box" size="0.08 0.03 0.03" contype="1" conaffinity="1"/>
+    </body>
+"""
+
+VMAX = np.array([1.0, 1.5])
+AMAX = np.array([2.0, 3.0])
+START = np.array([-1.2, 0.0])
+GOAL = np.array([1.2, 0.0])
+
+
+def arm(post: float = 0.75, extra: str = "") -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(ARM.format(post=post, extra=extra))
+
+
+def penetrations(m: mujoco.MjModel, qpos: np.ndarray, bodies: set[str]) -> list[tuple[str, str]]:
+    """Pairs of bodies (at least one of ``bodies``) that MuJoCo finds penetrating at qpos."""
+    d = mujoco.MjData(m)
+    d.qpos[:] = qpos
+    mujoco.mj_forward(m, d)
+    out = []
+    for c in d.contact[: d.ncon]:
+        names = (m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name)
+        if c.dist < 0 and bodies & set(names):
+            out.append(names)
+    return out
+
+
+def full(m: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
+    qpos = m.qpos0.copy()
+    qpos[:2] = q
+    return qpos
+
+
+def fine(q: np.ndarray, step: float) -> np.ndarray:
+    """The polyline through the rows of q, with points at most ``step`` apart."""
+    out = [q[:1]]
+    for a, b in zip(q[:-1], q[1:], strict=True):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        out.append(a + np.linspace(0, 1, n + 1)[1:, None] * (b - a))
+    return np.vstack(out)
+
+
+def planner(m: mujoco.MjModel, seed: int = 3, ignore: tuple[int, ...] = ()) -> JointPlanner:
+    # a generous time limit: RRT* then stops on its iteration count, the same on any machine
+    return JointPlanner(m, [0, 1], VMAX, AMAX, seed=seed, time_limit=60, ignore_bodies=ignore)
+
+
+@pytest.fixture(scope="module")
+def around_the_post() -> PlannedMove:
+    m = arm()
+    return planner(m).plan(full(m, START), GOAL)
+
+
+def test_the_straight_line_hits_the_post():
+    m = arm()
+    hits = [penetrations(m, full(m, q), {"link1", "link2"}) for q in fine(np.stack([START, GOAL]), 0.01)]
+    assert ("link2", "post") in {p for h in hits for p in h}
+
+
+def test_the_planned_path_goes_around_the_post(around_the_post):
+    mv, m = around_the_post, arm()
+    assert mv.planner == "RRTstar" and not mv.straight_line_free
+    np.testing.assert_allclose(mv.path[0], START, atol=1e-12)
+    np.testing.assert_allclose(mv.path[-1], GOAL, atol=1e-12)
+    np.testing.assert_allclose(mv.q[0], START, atol=1e-9)
+    np.testing.assert_allclose(mv.q[-1], GOAL, atol=1e-9)
+    for path in (mv.path, mv.q):  # the geometric path and the timed one, 2 mrad apart
+        for q in fine(path, 0.002):
+            assert penetrations(m, full(m, q), {"link1", "link2"}) == [], q
+    lo, hi = m.jnt_range[:2, 0], m.jnt_range[:2, 1]
+    assert np.all(mv.q >= lo - 1e-9) and np.all(mv.q <= hi + 1e-9)
+    seg = np.linalg.norm(np.diff(mv.path, axis=0), axis=1).sum()
+    assert mv.path_length == pytest.approx(seg)
+    assert mv.path_length > np.linalg.norm(GOAL - START)  # a detour
+    assert 0 < mv.planning_time_s < 30
+
+
+def test_the_timed_move_respects_the_velocity_and_acceleration_limits(around_the_post):
+    mv = around_the_post
+    t, q, qd = mv.times, mv.q, mv.qd
+    assert t[0] == 0 and np.all(np.diff(t) > 0)
+    assert q.shape == qd.shape == (len(t), 2)
+    h = np.diff(t)
+    v = np.diff(q, axis=0) / h[:, None]  # finite differences, not the planner's own qd
+    a = np.diff(v, axis=0) / ((h[1:] + h[:-1]) / 2)[:, None]
+    assert np.all(np.abs(v) <= VMAX * (1 + 1e-6))
+    assert np.all(np.abs(a) <= AMAX * (1 + 1e-6))
+    assert np.all(np.abs(qd) <= VMAX * (1 + 1e-6))
+    # qd is the derivative of q (central differences agree), from rest to rest
+    np.testing.assert_allclose((v[1:] + v[:-1]) / 2, qd[1:-1], atol=0.02 * VMAX.max())
+    np.testing.assert_allclose(qd[[0, -1]], 0, atol=1e-9)
+    # time-optimal to within the limits: some joint reaches its speed limit
+    assert np.max(np.abs(qd) / VMAX) > 0.9
+
+
+def test_the_plan_is_deterministic_for_a_seed(around_the_post):
+    m = arm()
+    again = planner(m).plan(full(m, START), GOAL)
+    np.testing.assert_array_equal(again.path, around_the_post.path)
+    np.testing.assert_array_equal(again.q, around_the_post.q)
+
+
+def test_a_free_straight_line_is_the_path():
+    m = arm()
+    mv = planner(m).plan(full(m, START), [-0.6, -0.6])  # folding away from the post
+    assert mv.planner == "straight" and mv.straight_line_free
+    np.testing.assert_array_equal(mv.path, [START, [-0.6, -0.6]])
+    assert mv.path_length == pytest.approx(np.linalg.norm([0.6, 0.6]))
+    np.testing.assert_allclose(mv.q[-1], [-0.6, -0.6], atol=1e-9)
+
+
+def test_a_start_in_collision_names_the_two_bodies():
+    m = arm(post=0.75)
+    start = np.array([0.0, 0.0])  # link2 through the post
+    assert penetrations(m, full(m, start), {"link2"})
+    with pytest.raises(PlanningError, match=r"start state is in collision: 'link2'.*'post'") as e:
+        planner(m).plan(full(m, start), GOAL)
+    assert isinstance(e.value, ConversionError)  # the package's one error base
+
+
+def test_a_goal_out_of_range_is_refused():
+    m = arm()
+    with pytest.raises(PlanningError, match=r"goal has joint 'j2' at 3\.0000, outside its range"):
+        planner(m).plan(full(m, START), [1.2, 3.0])
+
+
+def test_a_held_box_is_checked_with_the_arm():
+    # the tip reaches 0.93 m, the held box 1.04 m: a post at 1.05 m (front face 1.0)
+    m = arm(post=1.05, extra=HELD.format(x=0.96))
+    held = m.body("held").id
+    start = m.qpos0.copy()
+    start[:2] = START
+    # the box where the tip carries it at the start
+    c, s = np.cos(START[0]), np.sin(START[0])
+    start[2:5] = [0.96 * c, 0.96 * s, 0.3]
+    start[5:9] = [np.cos(START[0] / 2), 0, 0, np.sin(START[0] / 2)]
+    alone = planner(m, ignore=(held,)).plan(start, GOAL)
+    assert alone.planner == "straight"
+    carried = planner(m).plan(start, GOAL, attached_body=held)
+    assert carried.planner == "RRTstar" and not carried.straight_line_free
+    # independent check: the box moved with link2 along the timed motion
+    d = mujoco.MjData(m)
+    for q in fine(carried.q, 0.004):
+        qpos = start.copy()
+        qpos[:2] = q
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        link = m.body("link2").id
+        tip, R = d.xpos[link], d.xmat[link].reshape(3, 3)
+        qpos[2:5] = tip + R @ [0.46, 0, 0]
+        mujoco.mju_mat2Quat(qpos[5:9], R.ravel())
+        hits = penetrations(m, qpos, {"held", "link1", "link2"})
+        assert [h for h in hits if "post" in h] == [], q
+
+
+def test_the_robot_plans_from_home_to_stow_in_the_default_facility(tmp_path_factory):
+    from urdf2mjcf.facility.build import build_facility
+    from urdf2mjcf.facility.recipe import load_recipe
+    from urdf2mjcf.runner.load import load
+
+    out = tmp_path_factory.mktemp("plan") / "imetro"
+    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
+    fac = load(out)
+    m, d = fac.model, fac.data
+    joints = [m.joint(n).id for n in fac.manifest["components"]["robot"]["roles"]["joints"]]
+    vmax = [0.15, 0.25, 0.8, 0.8, 1.0, 1.2, 1.2, 1.2]
+    amax = [0.3, 0.5, 1.6, 1.6, 2.0, 2.4, 2.4, 2.4]
+    home = d.qpos.copy()
+    q0 = home[m.jnt_qposadr[joints]]
+    stow = np.concatenate([q0[:2], [1.5010, -0.3316, -2.2515, -3.6477, -1.5533, 1.5708]])
+    mv = JointPlanner(m, joints, vmax, amax, seed=1, time_limit=20).plan(home, stow)
+    np.testing.assert_allclose(mv.q[-1], stow, atol=1e-9)
+    robot = {m.body(b).name for b in range(m.nbody) if m.body_rootid[b] == m.body_rootid[m.jnt_bodyid[joints[0]]]}
+    for q in fine(mv.q, 0.02):
+        qpos = home.copy()
+        qpos[m.jnt_qposadr[joints]] = q
+        # the lift's middle stage follows the lift (its joint equality)
+        qpos[m.joint("lift_middle").qposadr] = 0.5 * q[1]
+        assert penetrations(m, qpos, robot) == [], q
