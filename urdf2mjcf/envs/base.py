@@ -125,10 +125,10 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         }
         self.camera_obs = bool(camera_obs)
         self._camera_size = _size(camera_size, "camera_size")
-        self._camera = -1
+        self.camera_id = -1
         if self.camera_obs:
             role = camera or self.default_camera
-            self._camera = self._camera_id(role, "camera")
+            self.camera_id = self._camera_id(role, "camera")
             w, h = self._camera_size
             self._far = float(m.stat.extent * m.vis.map.zfar)
             obs_spaces["rgb"] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
@@ -263,7 +263,7 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         if self.camera_obs:
             w, h = self._camera_size
             r = self._renderer("camera", w, h)
-            r.update_scene(self.data, camera=self._camera)
+            r.update_scene(self.data, camera=self.camera_id)
             obs["rgb"] = r.render()
             r.enable_depth_rendering()
             try:
