@@ -101,9 +101,13 @@ def test_a_folder_gives_its_urdfs_in_its_layout(tmp_path):
     shutil.copy(GOLDEN / "joints.urdf", src / "pkg" / "urdf" / "arm.urdf")
     shutil.copy(GOLDEN / "mimic.urdf", src / "hand.urdf")
     (src / "pkg" / "urdf" / "macros.xacro").write_text("<robot/>")  # a macro library: skipped
+    (src / "hand.urdf.xacro").write_text("<robot/>")  # the source of hand.urdf: left out
     out = tmp_path / "out"
     summary = run_batch([src], out, workers=1)
     assert [r["output"] for r in summary["robots"]] == ["hand/hand.xml", "pkg/urdf/arm/arm.xml"]
+    assert summary["skipped"] == [
+        {"source": str(src / "hand.urdf.xacro"), "reason": "hand.urdf beside it"}
+    ]
     assert (out / "pkg" / "urdf" / "arm" / "scene.xml").is_file()
 
 

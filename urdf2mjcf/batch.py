@@ -18,9 +18,10 @@ the files we wrote) last. So:
 
 Layout: a file ``a/b/robot.urdf`` named on the command line goes to
 ``OUT/robot/robot.xml``; a folder ``D`` contributes every ``*.urdf`` and
-``*.urdf.xacro`` under it, ``D/pkg/urdf/arm.urdf`` going to
-``OUT/pkg/urdf/arm/arm.xml``. Plain ``*.xacro`` files are mostly macro libraries,
-so a folder does not contribute them: name a top-level ``.xacro`` file explicitly.
+``*.urdf.xacro`` under it (not ``x.urdf.xacro`` beside ``x.urdf``: see :func:`plan`),
+``D/pkg/urdf/arm.urdf`` going to ``OUT/pkg/urdf/arm/arm.xml``. Plain ``*.xacro``
+files are mostly macro libraries, so a folder does not contribute them: name a
+top-level ``.xacro`` file explicitly.
 """
 
 from __future__ import annotations
@@ -57,10 +58,15 @@ def stem(path: Path) -> str:
     return path.stem or name
 
 
-def plan(paths: Sequence[Path]) -> list[tuple[Path, str]]:
+def plan(paths: Sequence[Path]) -> tuple[list[tuple[Path, str]], list[dict[str, str]]]:
     """(source, MJCF path relative to OUT) for every robot the PATHS name, sorted by
-    output; a bad PATH, or two sources with one output, is an :class:`InputError`."""
+    output, and the files of a folder left out (why); a bad PATH, or two sources with
+    one output, is an :class:`InputError`.
+
+    In a folder, ``x.urdf.xacro`` beside ``x.urdf`` is left out: the ``.urdf`` is what the
+    package ships expanded (as example-robot-data does), needing no xacro arguments."""
     found: dict[str, Path] = {}
+    skipped: list[dict[str, str]] = []
 
     def add(source: Path, rel: str) -> None:
         other = found.get(rel)
@@ -88,13 +94,17 @@ def plan(paths: Sequence[Path]) -> list[tuple[Path, str]]:
                     file=path,
                 )
             for src in sources:
+                expanded = src.with_name(f"{stem(src)}.urdf")
+                if src.name.lower().endswith(".xacro") and expanded in sources:
+                    skipped.append({"source": str(src), "reason": f"{expanded.name} beside it"})
+                    continue
                 parent = src.relative_to(path).parent
                 add(src, (parent / stem(src) / f"{stem(src)}.xml").as_posix())
         elif path.is_file():
             add(path, f"{stem(path)}/{stem(path)}.xml")
         else:
             raise InputError("does not exist", file=path)
-    return sorted(((src, rel) for rel, src in found.items()), key=lambda item: item[1])
+    return sorted(((src, rel) for rel, src in found.items()), key=lambda item: item[1]), skipped
 
 
 @dataclass(frozen=True)
@@ -193,7 +203,7 @@ def run_batch(
 ) -> dict[str, Any]:
     """Convert every robot PATHS name into the tree ``output``; returns the summary (also
     written as ``output/batch.json``). ``on_done(finished, total, entry)`` as each ends."""
-    sources = plan(paths)
+    sources, skipped = plan(paths)
     previous = out.check_folder(output, overwrite, SUMMARY, GENERATOR)
     if executor == "ray":
         import_ray()  # a missing Ray is bad input, said before anything runs
@@ -221,6 +231,7 @@ def run_batch(
         summary = {
             "generator": GENERATOR,
             "robots": entries,
+            "skipped": skipped,
             "converted": len(entries) - len(failed),
             "failed": len(failed),
             "executor": executor,
@@ -332,6 +343,8 @@ def _batch(
         overwrite=overwrite,
         on_done=None if quiet else _progress,
     )
+    for e in summary["skipped"]:
+        click.echo(f"skipped: {e['source']} ({e['reason']})")
     for e in summary["robots"]:
         if not e["ok"]:
             click.echo(f"failed: {e['source']}: {e['error']}")
