@@ -35,6 +35,9 @@ SCRIPT = MESHES / "make_express_rack.py"
 P = "express_rack_"
 F = "express_rack_merlin_"
 ALUMINIUM, PANEL = 2700.0, 1050.0  # materials.xacro
+BOLT_OUT = 0.025  # the bolt drawn back (the lock up, pi/2): clear of the keeper's lip
+UNLOCKED = {F + "latch_lock_joint": math.pi / 2, F + "bolt_joint": BOLT_OUT}
+KEEPER_FRONT = 0.054  # the keeper's lip stands this far in front of the body (x)
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +56,7 @@ def test_converts_cleanly_with_primitive_collisions(rack):
         F + "latch_pull_upper",
         F + "latch_pull_lower",
         F + "latch_lock",
+        F + "bolt",
     }
 
 
@@ -64,12 +68,14 @@ def test_rack_is_fixed_and_freezer_joints_match_the_facts(rack):
         "latch_pull_upper_joint": ("prismatic", (-0.0084, 0.0084), (0, 0, 1)),
         "latch_pull_lower_joint": ("prismatic", (-0.0084, 0.0084), (0, 0, 1)),
         "latch_lock_joint": ("revolute", (0.0, math.pi / 2), (-1, 0, 0)),
+        "bolt_joint": ("prismatic", (0.0, BOLT_OUT), (0, -1, 0)),  # driven by the lock
     }
     assert set(table) == {F + n for n in expected}, "the rack and the freezer body are fixed"
     for name, (kind, rng, axis) in expected.items():
         j = table[F + name]
         assert (j.type, j.range, j.axis) == (kind, pytest.approx(rng), pytest.approx(axis)), name
-        assert j.damping > 0 and j.frictionloss > 0, f"{name} must hold still when not driven"
+        if name != "bolt_joint":  # the bolt is held by its coupling to the lock
+            assert j.damping > 0 and j.frictionloss > 0, f"{name} must hold still when not driven"
 
 
 def test_masses_come_from_the_solids(rack):
@@ -92,9 +98,10 @@ def test_meshes_agree_with_the_collision_primitives(rack):
         (F + "body", "merlin_body.stl"),
         (F + "door", "merlin_door.stl"),
     ):
-        assert collision_bounds(m, d, body) == pytest.approx(
-            mesh_bounds(MESHES / mesh), abs=1e-3
-        ), body
+        want = mesh_bounds(MESHES / mesh).copy()
+        if body == F + "body":  # plus the lock's keeper, standing in front of the face
+            want[1][0] = KEEPER_FRONT
+        assert collision_bounds(m, d, body) == pytest.approx(want, abs=1e-3), body
     lo, hi = mesh_bounds(MESHES / "express_rack.stl")
     assert hi - lo == pytest.approx([0.86, 1.05, 2.0])  # deep, wide, tall
     lo, hi = mesh_bounds(MESHES / "merlin_body.stl")
@@ -106,13 +113,15 @@ def test_freezer_sits_in_its_bay_clear_of_the_rack(rack):
     d = home(m)
     body = m.body(F + "body").id
     assert d.xpos[body] == pytest.approx([0.0, -0.229, 1.067])
-    freezer_box = next(g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_contype[g])
+    mine = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_contype[g]]
     for g in range(m.ngeom):
         if m.geom_bodyid[g] == m.body(P + "rack").id and m.geom_contype[g]:
-            gap = mujoco.mj_geomDistance(m, d, freezer_box, g, 0.05, None)
-            assert gap > 0.0015, f"freezer against rack geom {m.geom(g).name}: {gap}"
-    # its front is flush with the rack's front
-    assert collision_bounds(m, d, F + "body")[1][0] == pytest.approx(0.0)
+            for f in mine:  # the shell and the keeper
+                gap = mujoco.mj_geomDistance(m, d, f, g, 0.05, None)
+                assert gap > 0.0015, f"freezer against rack geom {m.geom(g).name}: {gap}"
+    # its front (the shell, its first box) is flush with the rack's front
+    shell = mine[0]
+    assert d.geom_xpos[shell][0] + m.geom_size[shell][0] == pytest.approx(0.0)
 
 
 def test_facility_pose_puts_the_freezer_where_the_facts_do(tmp_path):
@@ -138,9 +147,13 @@ def test_every_joint_sweeps_its_range_without_interpenetration(rack):
     m, _ = rack
     table = joints(m)
     for name in table:
-        assert sweep(m, {name: span(m, name, 60)}) == [], name
-    # every combination: the door anywhere with the pulls and the lock anywhere
-    assert sweep(m, {name: span(m, name, 9) for name in table}) == []
+        # the door with its bolt drawn back; the rest as the freezer rests (door shut)
+        fixed = UNLOCKED if name == F + "door_joint" else None
+        assert sweep(m, {name: span(m, name, 60)}, fixed=fixed) == [], name
+    # every combination: the door anywhere with the pulls and the lever anywhere, the
+    # bolt drawn back (thrown, it stops the door: test_mechanisms.py)
+    grid = {name: span(m, name, 9) for name in table if name != F + "bolt_joint"}
+    assert sweep(m, grid, fixed={F + "bolt_joint": BOLT_OUT}) == []
 
 
 @pytest.mark.parametrize("where", [0.0, 0.3, 0.5, 0.8, 1.0])
@@ -165,6 +178,8 @@ def test_door_and_latches_move_through_their_ranges_when_driven(rack, joint, eff
     name = F + joint
     lo, hi = m.joint(name).range
     d = home(m)
+    if joint == "door_joint":
+        pose(m, d, UNLOCKED)  # the lever up: the bolt is out of the keeper
     for target, sign in ((lo, -1), (hi, 1), (lo, -1)):
         trace = push(m, d, name, sign * effort, 1.5)
         assert trace[-1] == pytest.approx(target, abs=0.02 * (hi - lo)), f"{joint} reaches {target}"
