@@ -16,8 +16,16 @@ import pytest
 
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
-from urdf2mjcf.runner.localize import CameraModel, camera_pose, detect, localize
+from urdf2mjcf.runner.localize import (
+    CameraModel,
+    camera_pose,
+    detect,
+    localization_record,
+    localize,
+    locate,
+)
 from urdf2mjcf.runner.noise import SensorNoise
+from urdf2mjcf.runner.perception import Camera
 
 ROOT = Path(__file__).resolve().parents[2]
 POSITION_MM, YAW_DEG = 5.0, 0.5
@@ -129,3 +137,38 @@ def test_no_tag_in_view_finds_nothing() -> None:
     assert detect(np.full((480, 640, 3), 128, np.uint8)) == {}
     grey = np.full((480, 640, 3), 128, np.uint8)
     assert localize(grey, None, CameraModel(640, 480, 58.0), np.eye(4), []) == {}
+
+
+def test_locate_renders_through_the_runners_camera_and_records_the_errors(
+    gl_context: None, jittered: dict
+) -> None:
+    """The runner's path: perception.Camera with the trial's noise, then locate();
+    localization_record gives the report's estimate-minus-truth figures."""
+    manifest = jittered["manifest"]
+    centre, axes = _tag_frame(manifest, 0)
+    spec = mujoco.MjSpec.from_file(str(jittered["dir"] / "scene.xml"))
+    eye = centre + axes[:, 2]
+    quat = np.zeros(4)
+    z = axes[:, 2]
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    mujoco.mju_mat2Quat(quat, np.column_stack([x, np.cross(z, x), z]).ravel())
+    spec.worldbody.add_camera(name="probe", pos=eye, quat=quat, fovy=58, resolution=[640, 480])
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    noise = SensorNoise.from_manifest(manifest, seed=5)
+    noise.light(m)
+    camera = Camera(m, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "probe"), noise=noise)
+    found = locate(camera, d, manifest)
+    camera.close()
+    record = localization_record(found, manifest)
+    assert set(record) == {"trainer"}
+    assert record["trainer"]["position_error_m"] < POSITION_MM / 1000
+    assert abs(record["trainer"]["yaw_error_deg"]) < YAW_DEG
+    # A point of the drawings lands where the jittered model has it.
+    tag = manifest["fiducials"][0]
+    body = m.body(tag["body"]).id
+    local = np.array(tag["pose_in_component"]["xyz"])
+    tag_world = d.xpos[body] + d.xmat[body].reshape(3, 3) @ np.array(tag["pose_in_body"]["xyz"])
+    assert np.linalg.norm(found["trainer"].to_world(local) - tag_world) < POSITION_MM / 1000

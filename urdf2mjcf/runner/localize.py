@@ -22,10 +22,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from .perception import Camera
 
 MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
 """A MuJoCo camera frame's axes -> OpenCV's (and back: it is its own inverse)."""
@@ -87,6 +92,17 @@ class Estimate:
     tags: tuple[int, ...]
     """Ids of the tags it rests on."""
     tag_poses: tuple[TagPose, ...] = field(default=())
+
+    def matrix(self) -> np.ndarray:
+        """(4, 4) pose of the component's frame in the world."""
+        t = np.eye(4)
+        t[:3, :3] = _yaw_matrix(self.yaw)
+        t[:3, 3] = self.position
+        return t
+
+    def to_world(self, xyz: Sequence[float]) -> np.ndarray:
+        """(3,) world point of a point given in the component's frame (the drawings)."""
+        return self.position + _yaw_matrix(self.yaw) @ np.asarray(xyz, float)
 
 
 def detector() -> cv2.aruco.ArucoDetector:
@@ -263,3 +279,33 @@ def camera_pose(xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
     t[:3, :3] = np.asarray(xmat, float).reshape(3, 3)
     t[:3, 3] = xpos
     return t
+
+
+def locate(camera: Camera, d: mujoco.MjData, manifest: Mapping[str, Any]) -> dict[str, Estimate]:
+    """What the runner calls: render ``camera`` (a ``perception.Camera``, with the
+    trial's sensor noise if it was given one), and localize every tagged component in
+    view from facility.json's ``fiducials``. The camera's pose is the robot's own
+    kinematics (the camera rides on the robot); no component pose is read."""
+    rgb, depth = camera.rgbd(d)
+    h, w = camera.size
+    model = CameraModel(w, h, float(camera.m.cam_fovy[camera.cam]))
+    pose = camera_pose(d.cam_xpos[camera.cam], d.cam_xmat[camera.cam])
+    return localize(rgb, depth, model, pose, manifest.get("fiducials") or [])
+
+
+def localization_record(
+    estimates: Mapping[str, Estimate], manifest: Mapping[str, Any]
+) -> dict[str, dict[str, float]]:
+    """For a trial's report only: each estimate minus the truth facility.json records
+    (``components.<name>.pose``): ``{"position_error_m", "yaw_error_deg"}``."""
+    out = {}
+    for name, e in sorted(estimates.items()):
+        truth = (manifest.get("components") or {}).get(name, {}).get("pose")
+        if truth is None:
+            continue
+        dyaw = math.degrees(e.yaw - float(truth["yaw"]))
+        out[name] = {
+            "position_error_m": float(np.linalg.norm(e.position - np.asarray(truth["xyz"]))),
+            "yaw_error_deg": (dyaw + 180.0) % 360.0 - 180.0,
+        }
+    return out
