@@ -192,6 +192,12 @@ def test_reset_gives_the_facility_make_facility_builds_with_that_seed(built, tmp
         np.testing.assert_allclose(u.data.xpos[mine], d.xpos[b], atol=1e-9, err_msg=m.body(b).name)
         np.testing.assert_allclose(u.data.xmat[mine], d.xmat[b], atol=1e-9, err_msg=m.body(b).name)
     env.close()
+    # a facility the user built is used as it is: loaded, not built again
+    before = env_build.builds
+    given = _make("IMetro-v0", facility=report.output)
+    assert given.unwrapped.folder == report.output and env_build.builds == before
+    assert all(np.isfinite(v).all() for v in given.reset(seed=0)[0].values())
+    given.close()
 
 
 def test_reset_never_builds_and_a_build_happens_once_per_inputs(built, tmp_path):
@@ -284,6 +290,10 @@ def test_bad_options_are_input_errors_naming_the_option(built):
         _make("IMetro-v0", camera_obs=True, camera="nose")
     with pytest.raises(InputError, match="jitter.kitchen.*unknown component"):
         _make("IMetro-v0", jitter={"kitchen": {"position": 0.1}})
+    with pytest.raises(InputError, match="render_size: 4000 x 300 exceeds the offscreen"):
+        _make("Mira3D-v0", render_size=(4000, 300))
+    with pytest.raises(InputError, match="frame_skip: must be >= 1"):
+        _make("Mira3D-v0", frame_skip=0)
     with pytest.raises(InputError, match="render_mode.*'human' is not one of rgb_array"):
         Mira3DEnv(root=ROOT, render_mode="human")  # gym.make would wrap it for human
 

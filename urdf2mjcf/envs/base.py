@@ -105,7 +105,8 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         self.poses = Poses(m, self.manifest, _ranges(loaded, placed, jitter), self.manifest_path)
 
         dt = float(m.opt.timestep)
-        self.frame_skip = int(frame_skip or max(1, round(1.0 / (DEFAULT_CONTROL_HZ * dt))))
+        default_skip = max(1, round(1.0 / (DEFAULT_CONTROL_HZ * dt)))
+        self.frame_skip = int(frame_skip) if frame_skip is not None else default_skip
         if self.frame_skip < 1:
             raise InputError(f"must be >= 1, got {frame_skip}", element="frame_skip")
         self.metadata = {**self.metadata, "render_fps": 1.0 / (dt * self.frame_skip)}
@@ -124,8 +125,9 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
             for k, n in self.vector_sizes().items()
         }
         self.camera_obs = bool(camera_obs)
-        self._camera_size = _size(camera_size, "camera_size")
+        self._camera_size = self._fits(camera_size, "camera_size")
         self.camera_id = -1
+        """The camera of the camera observations (-1: none)."""
         if self.camera_obs:
             role = camera or self.default_camera
             self.camera_id = self._camera_id(role, "camera")
@@ -135,7 +137,7 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
             obs_spaces["depth"] = spaces.Box(0.0, self._far, shape=(h, w), dtype=np.float32)
         self.observation_space = spaces.Dict(obs_spaces)  # type: ignore[assignment]
 
-        self._render_size = _size(render_size, "render_size")
+        self._render_size = self._fits(render_size, "render_size")
         self._render_camera = (
             self._camera_id(render_camera, "render_camera") if render_camera else None
         )
@@ -245,6 +247,15 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
             valid = ", ".join(sorted(cams)) or "none"
             raise InputError(f"no camera '{role}'; the robot's: {valid}", element=what)
         return i
+
+    def _fits(self, value: Any, what: str) -> tuple[int, int]:
+        """An image size within the model's offscreen buffer (``<visual><global>``)."""
+        w, h = _size(value, what)
+        g = self.model.vis.global_
+        if w > g.offwidth or h > g.offheight:
+            limit = f"{g.offwidth} x {g.offheight}"
+            raise InputError(f"{w} x {h} exceeds the offscreen buffer, {limit}", element=what)
+        return w, h
 
     def _renderer(self, key: str, w: int, h: int) -> mujoco.Renderer:
         if key not in self._renderers:
