@@ -196,3 +196,39 @@ def test_a_tag_on_a_link_the_facility_lacks_names_the_component(tmp_path: Path) 
     g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "tag36h11_5")
     assert (m.geom_contype[g], m.geom_conaffinity[g], m.geom_group[g]) == (0, 0, 2)
     assert m.ntex == 1 and m.nmat == 1
+
+
+def test_a_users_own_component_carries_tags_the_builder_knows_nothing_about(
+    tmp_path: Path, gl_context: None
+) -> None:
+    """The user's crate (a free body of their own) with a tag on its lid: placed,
+    listed and found by the localizer from above, under the crate's own jitter."""
+    from tests.facility import test_own_facility as own
+    from urdf2mjcf.runner.localize import CameraModel, camera_pose, localize
+
+    tag = "  fiducials:\n    - {id: 7, link: crate, xyz: [0, 0, 0.102], rpy: [0, 0, 0.3], size: 0.08}\n"
+    recipe = load_recipe(own._lab(tmp_path / "lab", table=own.TABLE + tag), root=ROOT)
+    out = build_facility(recipe, tmp_path / "out", root=ROOT, seed=4, components=False).output
+    manifest = json.loads((out / "facility.json").read_text())
+    assert [(f["id"], f["component"], f["body"]) for f in manifest["fiducials"]] == [
+        (7, "crate", "crate_crate")
+    ]
+    truth = manifest["components"]["crate"]["pose"]
+    spec = mujoco.MjSpec.from_file(str(out / "scene.xml"))
+    eye = np.array(truth["xyz"]) + [0.2, -0.1, 1.0]  # ~1 m above the lid, a little aside
+    spec.worldbody.add_camera(name="top", pos=eye, fovy=58, resolution=[640, 480])
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    with mujoco.Renderer(m, 480, 640) as r:
+        r.update_scene(d, camera="top")
+        rgb = r.render().copy()
+        r.enable_depth_rendering()
+        r.update_scene(d, camera="top")
+        depth = r.render().copy()
+    cam = m.camera("top").id
+    pose = camera_pose(d.cam_xpos[cam], d.cam_xmat[cam])
+    found = localize(rgb, depth, CameraModel(640, 480, 58.0), pose, manifest["fiducials"])
+    assert found["crate"].tags == (7,)
+    assert np.linalg.norm(found["crate"].position - truth["xyz"]) < 0.005
+    assert abs(math.degrees(found["crate"].yaw - truth["yaw"])) < 0.5
