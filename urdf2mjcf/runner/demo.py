@@ -3,8 +3,10 @@
 Step kinds (``kind:`` in the file):
 
 ``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value}
-``pose``     the grasp site to ``position`` with tool axes ``z``/``x`` given in ``frame``
-             (``world``, a body of the model, or ``handle``: the perceived strap);
+``pose``     the grasp site to ``position`` with tool axes ``z``/``x`` (or the rotation
+             ``orientation_xyzw``, a quaternion x, y, z, w) given in ``frame`` (``world``,
+             a body of the model, or ``handle``: the perceived strap); ``site`` names
+             another of the robot's sites (``tool``: tool0, as published poses give it);
              a straight Cartesian line through dense IK
 ``relative`` a straight move by ``tool`` (tool-frame offset) or ``world`` offset
 ``hinge``    the arc around ``joint``: ``steps`` x ``step_deg``, orientation held or not
@@ -215,12 +217,22 @@ class Demo:
         origin, R0 = _frame(self, step.get("frame", "world"))
         pos = origin + R0 @ np.asarray(step["position"], float)
         _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
-        if "z" in step:
+        if "orientation_xyzw" in step:
+            R = R0 @ Rotation.from_quat(step["orientation_xyzw"]).as_matrix()
+        elif "z" in step:
             R = R0 @ _rotation(step["z"], step["x"])
             if step.get("x_sign_free") and R[:, 0] @ Rcur[:, 0] < 0:
                 R = R @ np.diag([-1.0, -1.0, 1.0])
         else:
             R = Rcur
+        if "site" in step:
+            # a pose of another site, rigid with the grasp site: the grasp site's pose
+            # that puts it there
+            s, g = self.r.sites[step["site"]], self.site
+            rs = self.d.site_xmat[s].reshape(3, 3)
+            rg = self.d.site_xmat[g].reshape(3, 3)
+            p_rel = rs.T @ (self.d.site_xpos[g] - self.d.site_xpos[s])
+            pos, R = pos + R @ p_rel, R @ (rs.T @ rg)
         return pos, R
 
     def _do_pose(self, step: dict) -> None:

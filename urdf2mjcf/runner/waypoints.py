@@ -154,6 +154,8 @@ KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
             "z": numbers(3),
             "x": numbers(3),
             "x_sign_free": flag,
+            "orientation_xyzw": numbers(4),
+            "site": name,
             "joint_space": flag,
             "seed": numbers(),
         },
@@ -274,6 +276,9 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
             exists(obj.mjOBJ_JOINT, step["joint"], f"{at}.joint")
         if "joint_above_deg" in step.get("check", {}):
             exists(obj.mjOBJ_JOINT, step["check"]["joint_above_deg"][0], f"{at}.check")
+        if "site" in step and step["site"] not in robot.sites:
+            roles = ", ".join(robot.sites)
+            raise w.fail(f"{at}.site", f"'{step['site']}' is not a site role; roles: {roles}")
         camera = step.get("camera", "wrist")
         if step["kind"] == "look" and camera not in robot.cameras:
             roles = ", ".join(robot.cameras)
