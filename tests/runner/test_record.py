@@ -349,19 +349,35 @@ def test_rover_drive_records_and_replaces_only_its_own_recordings(mira, tmp_path
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temp file left
 
 
-def test_facility_demo_records_its_first_steps(imetro, tmp_path, gl_context):
-    spec = yaml.safe_load((ROOT / "recipes" / "demo" / "imetro.yaml").read_text())
-    # one short step of the demo's own kinds: the run, not the demo's poses, is under test
-    fac = load(imetro)
+def short_demo(folder: Path, tmp_path: Path) -> Path:
+    """A waypoints file of one gripper step (open if closed, else close) and a short final
+    wait, naming only what the facility's manifest names: the recording, not the demo's
+    poses, is under test."""
+    fac = load(folder)
+    m = fac.model
     roles = fac.manifest["components"]["robot"]["roles"]
     finger = roles["gripper"]["joints"][0]
-    start = fac.data.qpos[fac.model.jnt_qposadr[fac.joint(finger)]]
+    start = fac.data.qpos[m.jnt_qposadr[fac.joint(finger)]]
     shut = start > (roles["gripper"]["open"] + roles["gripper"]["closed"]) / 2
     action = "close" if shut else "open"
-    spec["steps"] = [{"name": action, "kind": "gripper", "action": action, "seconds": 0.5}]
-    spec["final_wait"] = 0.3
-    waypoints = tmp_path / "short.yaml"
-    waypoints.write_text(yaml.safe_dump(spec))
+    bag = fac.manifest["components"]["ctb"]["prefix"]
+    named = (m.geom(g).name for g in range(m.ngeom) if m.geom_bodyid[g] == fac.body(bag))
+    geom = next(n for n in named if n)
+    spec = {
+        "bag": {"body": bag, "geom": geom},
+        "stowage": {"body": bag, "inside": [0.1, 0.1, 0.1]},
+        "final_wait": 0.3,
+        "steps": [{"name": action, "kind": "gripper", "action": action, "seconds": 0.5}],
+    }
+    path = tmp_path / "short.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def test_facility_demo_records_a_short_run(imetro, tmp_path, gl_context):
+    waypoints = short_demo(imetro, tmp_path)
+    roles = load(imetro).manifest["components"]["robot"]["roles"]
+    finger = roles["gripper"]["joints"][0]
     path = tmp_path / "demo.mcap"
     res = CliRunner().invoke(
         facility_demo_command, [str(imetro), "--waypoints", str(waypoints), "--record", str(path)]
@@ -381,6 +397,7 @@ def test_facility_demo_records_its_first_steps(imetro, tmp_path, gl_context):
 
 
 def test_facility_demo_refuses_a_recording_it_cannot_write(imetro, tmp_path):
+    waypoints = short_demo(imetro, tmp_path)
     other = tmp_path / "notes.mcap"
     other.write_text("not ours")
     for extra, message in (
@@ -388,7 +405,9 @@ def test_facility_demo_refuses_a_recording_it_cannot_write(imetro, tmp_path):
         (["--record", str(other)], "not a recording of facility-demo"),
         (["--record", str(tmp_path / "x.mcap"), "--trials", "2"], "not --trials"),
     ):
-        res = CliRunner().invoke(facility_demo_command, [str(imetro), *extra])
+        res = CliRunner().invoke(
+            facility_demo_command, [str(imetro), "--waypoints", str(waypoints), *extra]
+        )
         assert res.exit_code != 0
         assert message in (res.output + str(res.exception)), res.output
     assert other.read_text() == "not ours"
