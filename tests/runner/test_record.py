@@ -84,7 +84,19 @@ def read(path: Path) -> dict[str, list[tuple[int, object]]]:
 
 
 def types(path: Path) -> dict[str, str]:
-    """Topic -> type, with AnyReader checking the definitions stored in the file."""
+    """Topic -> type, with AnyReader checking the definitions stored in the file (and the
+    container saying what rosbag2's MCAP storage plugin looks for: the ros2 profile, ros2msg
+    schemas, CDR messages; every chunk's CRC valid)."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert summary is not None
+        assert {c.message_encoding for c in summary.channels.values()} == {"cdr"}
+        assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+        assert sum(1 for _ in reader.iter_messages()) == summary.statistics.message_count
     with AnyReader([path]) as reader:
         for conn in reader.connections:  # what the file says is what ROS 2 Humble says
             assert reader.typestore.hash_rihs01(conn.msgtype) == HUMBLE.hash_rihs01(conn.msgtype)
