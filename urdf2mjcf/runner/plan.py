@@ -3,35 +3,43 @@ with TOPP-RA within the joints' velocity and acceleration limits.
 
 The paper's stack planned its joint moves with MoveIt and OMPL's RRT*; this is the
 same planner on the compiled MuJoCo model, so what is checked is exactly what is
-simulated (the model's geoms, its ``contype``/``conaffinity``, its ``<exclude>``s and
-MuJoCo's parent-child filter).
+simulated: the model's geoms, its ``contype``/``conaffinity`` rule, its ``<exclude>``s
+and MuJoCo's parent-child filter.
 
-A state (the planned joints' positions) is checked on a private ``MjData``: every
-other coordinate comes from the full state at the start of the move, joints that
-follow a planned joint through a joint equality (a mimic, e.g. the lift's middle
-stage) are set from their leader's polynomial, ``mj_kinematics`` + ``mj_collision``
-run, and the state is invalid when a contact closer than ``margin`` involves a robot
-body (the subtrees of the planned joints, plus a held body) and a body that is not
-ignored, in a pair that is not allowed. A held body (``attached_body``, a free body)
-keeps its pose relative to the body of the last planned joint at the start of the
-move; its contacts with that body's subtree (the gripper holding it) are allowed.
+**A state** (positions of the planned joints) is checked on a private copy of the model
+and a private ``MjData``: every other coordinate comes from the full state at the start
+of the move; a joint that follows a planned joint through a joint equality (a mimic:
+the lift's middle stage) is set from its leader by the equality's polynomial;
+``mj_kinematics`` + ``mj_collision`` run. The state is invalid when a contact closer
+than ``margin`` involves a robot body (the subtrees of the planned joints, and a held
+body) and no ignored body, in a pair that is not allowed. The copy's contact bits are
+rewritten so that MuJoCo computes only pairs with a robot geom (the same pairs its own
+rule gives; pairs of mockup parts are skipped). A held body (``attached_body``, a free
+body) keeps its pose relative to the body of the deepest planned joint at the start of
+the move; its contacts with that body's subtree (the gripper holding it) are allowed.
 
-A move:
+**A move**:
 
-1. the straight joint interpolation, checked every ``resolution`` (joint-space
-   distance, rad and m mixed); when free it is the path (``planner == "straight"``);
-2. otherwise RRT* (``ompl.geometric.RRTstar``) with OMPL's seeded RNG, motions checked
-   at the same resolution, stopped after ``ITERATIONS`` iterations once a solution
-   exists (deterministic for a seed) or at ``time_limit`` seconds; then OMPL's
-   shortcutting (``simplifySolution``, run to convergence);
-3. TOPP-RA time-optimal timing of a cubic spline through the path, densified so the
-   spline keeps to the checked segments, under ``|qd| <= vmax`` and ``|qdd| <= amax``
-   per joint, from rest to rest; sampled every ``SAMPLE_DT`` seconds, stretched in
-   time where the samples' finite differences exceed a limit, and checked against
-   collisions again at ``resolution``.
+1. the straight joint interpolation, checked every ``resolution`` (joint-space norm,
+   rad and m mixed); when free it is the path (``planner == "straight"``);
+2. otherwise RRT* (``ompl.geometric.RRTstar``, OMPL 2.0's nanobind bindings) in the box
+   of the joint ranges narrowed to the start-goal span plus HINGE_SLACK per hinge, OMPL's
+   RNG seeded from ``seed``, motions checked at ``resolution``; it stops ITERATIONS
+   iterations after its first solution (the same path for a seed on any machine) or at
+   ``time_limit`` seconds from the start of the move; then OMPL's shortcutting
+   (``simplifySolution`` to convergence, seeded too);
+3. TOPP-RA time-optimal timing, from rest to rest, of a cubic spline through the path
+   densified to DENSE spacing (the spline keeps to the checked segments), under
+   ``|qd| <= vmax`` and ``|qdd| <= amax`` per joint; sampled every SAMPLE_DT seconds and
+   stretched in time where the samples' finite differences exceed a limit between
+   TOPP-RA's grid points; the spline is checked against collisions again.
 
-Failures raise ``PlanningError``: start or goal in collision (naming the two bodies),
-out of range, or no path within the time limit.
+States of a planned path (steps 1 and 2) keep PAD metres beyond ``margin`` from every
+pair of bodies that are not already that close at the start or the goal, so that the
+motion between two checks does not graze an obstacle.
+
+Failures raise ``PlanningError`` (a ``ConversionError``): the start or goal in collision
+(naming the two bodies and geoms), out of range, or no path within the time limit.
 """
 
 from __future__ import annotations
@@ -60,11 +68,12 @@ DENSE = 0.05
 HINGE, SLIDE, FREE = (int(t) for t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE,
                                        mujoco.mjtJoint.mjJNT_FREE))
 PAD = 0.005
-"""Clearance (m) kept by the planned path's checked states away from its two ends, so
-that the motion between two checks (``resolution`` apart) does not graze an obstacle."""
-PAD_RAMP = 0.1
-"""Joint-space distance from the start or goal over which the clearance grows from 0 to
-PAD: a start or goal close to an object (a grasp) stays reachable."""
+"""Clearance (m) beyond ``margin`` kept at the checked states of a planned path, so that
+the motion between two checks (``resolution`` apart) does not graze an obstacle; pairs
+of bodies already that close at the start or the goal (a grasp, the rail carriage on its
+rail) need only ``margin``."""
+HINGE_SLACK = math.pi / 2
+"""How far (rad) a hinge may swing beyond the span of its start and goal while planning."""
 RANGE_TOL = 1e-3
 """A start this far past a joint's range (rad or m) counts as at the limit."""
 
@@ -176,6 +185,8 @@ class JointPlanner:
         self.time_limit = float(time_limit)
         self.resolution = float(resolution)
         self.robot = _subtree(m, m.jnt_bodyid[self.joints])
+        self._contype0 = m.geom_contype.copy()
+        self._conaffinity0 = m.geom_conaffinity.copy()
         self.ignored = np.zeros(m.nbody, bool)
         self.ignored[list(ignore_bodies)] = True
         self.allowed = np.zeros((m.nbody, m.nbody), bool)
@@ -189,9 +200,9 @@ class JointPlanner:
         # per plan(): the full state at the start and the held body, if any
         self._base = m.qpos0.copy()
         self._held: tuple[int, int, np.ndarray, np.ndarray] | None = None
-        self._robot_now = self.robot
-        self._allowed_now = self.allowed
-        self._ends: tuple[np.ndarray, np.ndarray] | None = None
+        self._robot_now, self._allowed_now = self.robot, self.allowed
+        self._use(self.robot, self.allowed)
+        self._pad: np.ndarray | None = None  # (nbody, nbody) clearance beyond margin, m
 
     # ---- model facts ----------------------------------------------------------------
 
@@ -243,8 +254,9 @@ class JointPlanner:
             mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
 
-    def _first_contact(self, limit: float) -> _Contact | None:
-        """The closest counted contact closer than ``limit`` in the private data, or None."""
+    def _first_contact(self, pad: np.ndarray | None = None) -> _Contact | None:
+        """The closest counted contact closer than ``margin`` (plus ``pad[body1, body2]``)
+        in the private data, or None."""
         m, d = self.m, self.d
         n = d.ncon
         if n == 0:
@@ -252,6 +264,7 @@ class JointPlanner:
         geoms = d.contact.geom[:n]
         dist = d.contact.dist[:n]
         b1, b2 = m.geom_bodyid[geoms[:, 0]], m.geom_bodyid[geoms[:, 1]]
+        limit = self.margin if pad is None else self.margin + pad[b1, b2]
         counted = (
             (dist < limit)
             & (self._robot_now[b1] | self._robot_now[b2])
@@ -270,31 +283,62 @@ class JointPlanner:
 
     def _contact_at(self, q: np.ndarray) -> _Contact | None:
         self._set(np.asarray(q, float))
-        return self._first_contact(self.margin)
+        return self._first_contact()
 
     def _valid(self, q: np.ndarray) -> bool:
-        """A state of the path being planned: clear by ``margin``, plus PAD away from the
-        path's ends (the ramp starts at 0 so the ends themselves need only ``margin``)."""
-        pad = 0.0
-        if self._ends is not None:
-            near = min(float(np.linalg.norm(q - e)) for e in self._ends)
-            pad = PAD * min(1.0, near / PAD_RAMP)
+        """A state of the path being planned: clear by ``margin`` plus its pairs' pad."""
         self._set(q)
-        return self._first_contact(self.margin + pad) is None
+        return self._first_contact(self._pad) is None
 
     def _free(self, q: np.ndarray) -> bool:
         self._set(q)
-        return self._first_contact(self.margin) is None
+        return self._first_contact() is None
+
+    def _pads(self, ends: Iterable[np.ndarray]) -> np.ndarray:
+        """PAD for every pair of bodies, except those closer than margin + PAD at an end."""
+        pad = np.full((self.m.nbody, self.m.nbody), PAD)
+        for q in ends:
+            self._set(q)
+            n = self.d.ncon
+            close = self.d.contact.dist[:n] < self.margin + PAD
+            b = self.m.geom_bodyid[self.d.contact.geom[:n][close]]
+            pad[b[:, 0], b[:, 1]] = pad[b[:, 1], b[:, 0]] = 0.0
+        return pad
+
+    def _use(self, robot: np.ndarray, allowed: np.ndarray) -> None:
+        """Check contacts of ``robot`` (bodies) only: on the private model, rewrite the
+        contact bits so that every pair MuJoCo would test with a robot geom is still tested
+        (same contype/conaffinity rule) and pairs without one are not computed at all."""
+        self._robot_now, self._allowed_now = robot, allowed
+        m, ct0, ca0 = self.m, self._contype0, self._conaffinity0
+        body = m.geom_bodyid
+        mine = robot[body] & ~self.ignored[body]
+        classes = sorted(set(zip(ct0[mine].tolist(), ca0[mine].tolist(), strict=True)))
+        if len(classes) > 31:  # more kinds than bits: keep MuJoCo's bits as they are
+            ct, ca = ct0.copy(), ca0.copy()
+        else:
+            ct, ca = np.zeros_like(ct0), np.zeros_like(ca0)
+            for i, (c_type, c_aff) in enumerate(classes):
+                bit = 1 << i
+                ct[mine & (ct0 == c_type) & (ca0 == c_aff)] = bit
+                ca[((c_type & ca0) != 0) | ((ct0 & c_aff) != 0)] |= bit
+        ct[self.ignored[body]] = ca[self.ignored[body]] = 0
+        m.geom_contype[:], m.geom_conaffinity[:] = ct, ca
+        # the broadphase filters bodies by the union of their geoms' bits
+        m.body_contype[:] = m.body_conaffinity[:] = 0
+        np.bitwise_or.at(m.body_contype, body, ct)
+        np.bitwise_or.at(m.body_conaffinity, body, ca)
 
     def is_free(self, qpos_full: np.ndarray) -> bool:
         """True when the full state ``qpos_full`` has no counted contact (no held body)."""
         saved = self._base, self._held, self._robot_now, self._allowed_now
         self._base, self._held = np.asarray(qpos_full, float).copy(), None
-        self._robot_now, self._allowed_now = self.robot, self.allowed
+        self._use(self.robot, self.allowed)
         try:
             return self._free(self._base[self.qadr])
         finally:
-            self._base, self._held, self._robot_now, self._allowed_now = saved
+            self._base, self._held = saved[0], saved[1]
+            self._use(saved[2], saved[3])
 
     def _segment_free(self, a: np.ndarray, b: np.ndarray) -> bool:
         n = max(1, math.ceil(float(np.linalg.norm(b - a)) / self.resolution))
@@ -305,7 +349,8 @@ class JointPlanner:
     def _hold(self, attached_body: int | None) -> None:
         """Start-of-move bookkeeping of the held body (pose in the last robot body)."""
         m = self.m
-        self._held, self._robot_now, self._allowed_now = None, self.robot, self.allowed
+        self._held = None
+        self._use(self.robot, self.allowed)
         if attached_body is None:
             return
         b = int(attached_body)
@@ -321,11 +366,10 @@ class JointPlanner:
         mujoco.mju_mulPose(rel_pos, rel_quat, inv_pos, inv_quat, d.xpos[b], d.xquat[b])
         self._held = (int(m.jnt_qposadr[jnt]), b, rel_pos, rel_quat)
         held = _subtree(m, [b])
-        self._robot_now = self.robot | held
         grip = _subtree(m, [link])
-        self._allowed_now = self.allowed.copy()
-        self._allowed_now[np.ix_(held, grip)] = True
-        self._allowed_now[np.ix_(grip, held)] = True
+        allowed = self.allowed.copy()
+        allowed[np.ix_(held, grip)] = allowed[np.ix_(grip, held)] = True
+        self._use(self.robot | held, allowed)
 
     def plan(
         self,
@@ -353,7 +397,7 @@ class JointPlanner:
             if hit is not None:
                 raise PlanningError(f"the {what} state is in collision: {hit}")
 
-        self._ends = (start, goal)
+        self._pad = self._pads((start, goal))
         try:
             straight = self._segment_free(start, goal)
             if straight:
@@ -361,7 +405,7 @@ class JointPlanner:
             else:
                 path, planner = self._rrtstar(start, goal, t0), "RRTstar"
         finally:
-            self._ends = None
+            self._pad = None
         path[0] = start_true
         times, q, qd = self._timed(path)
         elapsed = time.perf_counter() - t0
@@ -378,6 +422,14 @@ class JointPlanner:
                                 f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]")
         return np.clip(q, self.lower, self.upper)
 
+    def _box(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sampling box: a hinge may swing HINGE_SLACK beyond the span of its start and
+        goal (its full range, often +-2 pi, is mostly detours), a slide over its range."""
+        hinge = np.array([int(self.m.jnt_type[j]) == HINGE for j in self.joints])
+        lo = np.where(hinge, np.minimum(start, goal) - HINGE_SLACK, self.lower)
+        hi = np.where(hinge, np.maximum(start, goal) + HINGE_SLACK, self.upper)
+        return np.maximum(lo, self.lower), np.minimum(hi, self.upper)
+
     def _rrtstar(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
         from ompl import base as ob
         from ompl import geometric as og
@@ -388,11 +440,12 @@ class JointPlanner:
         # OMPL seeds every new RNG (planner, sampler, simplifier) from this one: reseeding
         # before each plan makes a plan depend only on the seed and the problem.
         ou.RNG.setSeed(self.seed % 2147483646 + 1)  # 0 is refused by OMPL
+        lo, hi = self._box(start, goal)
         space = ob.RealVectorStateSpace(k)
         bounds = ob.RealVectorBounds(k)
         for i in range(k):
-            bounds.setLow(i, float(self.lower[i]))
-            bounds.setHigh(i, float(self.upper[i]))
+            bounds.setLow(i, float(lo[i]))
+            bounds.setHigh(i, float(hi[i]))
         space.setBounds(bounds)
         ss = og.SimpleSetup(space)
         ss.setStateValidityChecker(lambda s: self._valid(np.array([s[i] for i in range(k)])))
