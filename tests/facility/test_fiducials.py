@@ -110,6 +110,29 @@ def test_tags_face_out_of_their_surfaces_towards_open_space(built: Path) -> None
         assert dist < 0 or dist > 0.05, f"tag {f['id']} faces {hit[0]} at {dist:.3f} m"
 
 
+def test_each_tag_lies_flat_on_a_surface_of_its_own_body(built: Path) -> None:
+    """Behind each plate, within 1 mm, is the visual surface of the body it is on: no
+    tag floats in the air or hides inside a part (MuJoCo's ray against the geoms)."""
+    manifest = json.loads((built / "facility.json").read_text())
+    m = mujoco.MjModel.from_xml_path(str(built / "scene.xml"))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    groups = np.array([0, 0, 1, 0, 0, 0], np.uint8)
+    for f in manifest["fiducials"]:
+        g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"tag36h11_{f['id']}")
+        rot = d.geom_xmat[g].reshape(3, 3)
+        half = m.geom_size[g]
+        m.geom_group[g] = 5  # the rays see through the tag itself, to what is behind it
+        for cx, cy in [(0, 0), (0.8, 0.8), (-0.8, 0.8), (0.8, -0.8), (-0.8, -0.8)]:
+            # From 5 mm in front of the face: the surface lies behind the 2 mm plate.
+            start = d.geom_xpos[g] + rot @ [cx * half[0], cy * half[1], half[2] + 0.005]
+            hit = np.zeros(1, np.int32)
+            dist = mujoco.mj_ray(m, d, start, -rot[:, 2], groups, 1, -1, hit)
+            body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[hit[0]]))
+            gap = dist - 0.005 - 2 * half[2]
+            assert abs(gap) < 0.001 and body == f["body"], (f["id"], cx, cy, gap, body)
+
+
 TABLE = {
     "box": {
         "asset": "box",

@@ -30,10 +30,12 @@ from urdf2mjcf.runner.perception import Camera
 ROOT = Path(__file__).resolve().parents[2]
 POSITION_MM, YAW_DEG = 5.0, 0.5
 JITTER = {"jitter.default.position": "0.02", "jitter.default.yaw": "0.0349"}  # 2 cm, 2 deg
+# Without the robot: these views are placed around the tags, wherever the robot stands.
+SETS = {**JITTER, "robot": "none"}
 
 
 def _build(base: Path, name: str, seed: int | None) -> dict:
-    recipe = load_recipe(ROOT / "recipes" / "imetro.yaml", JITTER, root=ROOT)
+    recipe = load_recipe(ROOT / "recipes" / "imetro.yaml", SETS, root=ROOT)
     out = build_facility(recipe, base / name, root=ROOT, seed=seed, components=False).output
     return {"dir": out, "manifest": json.loads((out / "facility.json").read_text())}
 
@@ -58,16 +60,24 @@ def _tag_frame(manifest: dict, tag_id: int) -> tuple[np.ndarray, np.ndarray]:
     return centre, r @ np.reshape(f["pose_in_component"]["matrix"], (3, 3))
 
 
+def _look_at(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Quaternion of a MuJoCo camera at ``eye`` looking at ``target``, image up as near
+    the world's +z as the view allows (+y when looking straight down)."""
+    z = eye - target
+    z /= np.linalg.norm(z)
+    up = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(up, z)
+    x /= np.linalg.norm(x)
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.column_stack([x, np.cross(z, x), z]).ravel())
+    return quat
+
+
 def _render(folder: Path, eye: np.ndarray, target: np.ndarray, seed: int | None) -> tuple:
     """RGB and depth of a 640 x 480, 58 deg camera (a D435 as simulated) at ``eye``
     looking at ``target``, with the facility's sensor noise for ``seed`` (None: ideal)."""
     spec = mujoco.MjSpec.from_file(str(folder / "scene.xml"))
-    z = eye - target
-    z /= np.linalg.norm(z)
-    x = np.cross([0.0, 0.0, 1.0], z)
-    x /= np.linalg.norm(x)
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.column_stack([x, np.cross(z, x), z]).ravel())
+    quat = _look_at(eye, target)
     spec.worldbody.add_camera(name="probe", pos=eye, quat=quat, fovy=58, resolution=[640, 480])
     m = spec.compile()
     d = mujoco.MjData(m)
@@ -147,12 +157,8 @@ def test_locate_renders_through_the_runners_camera_and_records_the_errors(
     manifest = jittered["manifest"]
     centre, axes = _tag_frame(manifest, 0)
     spec = mujoco.MjSpec.from_file(str(jittered["dir"] / "scene.xml"))
-    eye = centre + axes[:, 2]
-    quat = np.zeros(4)
-    z = axes[:, 2]
-    x = np.cross([0.0, 0.0, 1.0], z)
-    x /= np.linalg.norm(x)
-    mujoco.mju_mat2Quat(quat, np.column_stack([x, np.cross(z, x), z]).ravel())
+    eye = centre + axes[:, 2] * math.sqrt(1 - 0.3**2) + axes[:, 0] * 0.3
+    quat = _look_at(eye, centre)
     spec.worldbody.add_camera(name="probe", pos=eye, quat=quat, fovy=58, resolution=[640, 480])
     m = spec.compile()
     d = mujoco.MjData(m)
