@@ -155,6 +155,8 @@ def facility_demo_command(
     check_names(spec, waypoints, fac)
     if report:
         out.check_file(report, overwrite, GENERATOR)
+    if executor != "local" and not trials:
+        raise click.UsageError(f"--executor {executor} runs --trials; give --trials N")
     if address and executor != "ray":
         raise click.UsageError("--address needs --executor ray")
     if address and workers:
