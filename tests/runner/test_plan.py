@@ -102,7 +102,9 @@ def around_the_post() -> PlannedMove:
 
 def test_the_straight_line_hits_the_post():
     m = arm()
-    hits = [penetrations(m, full(m, q), {"link1", "link2"}) for q in fine(np.stack([START, GOAL]), 0.01)]
+    hits = [
+        penetrations(m, full(m, q), {"link1", "link2"}) for q in fine(np.stack([START, GOAL]), 0.01)
+    ]
     assert ("link2", "post") in {p for h in hits for p in h}
 
 
@@ -202,6 +204,67 @@ def test_a_held_box_is_checked_with_the_arm():
         assert [h for h in hits if "post" in h] == [], q
 
 
+SLIDES = """
+<mujoco>
+  <worldbody>
+    <body name="leader" pos="0 0 0.5">
+      <joint name="leader" type="slide" axis="1 0 0" range="0 1"/>
+      <geom type="box" size="0.05 0.05 0.05"/>
+      <body name="follower" pos="0 0.3 0">
+        <joint name="follower" type="slide" axis="1 0 0" range="-1 1"/>
+        <geom type="box" size="0.05 0.05 0.05"/>
+      </body>
+    </body>
+    <body name="wall" pos="0.45 0.3 0.5">
+      <geom type="box" size="0.02 0.1 0.1"/>
+    </body>
+  </worldbody>
+  <equality>
+    <joint joint1="follower" joint2="leader" polycoef="0 -0.5 0 0 0"/>
+  </equality>
+</mujoco>
+"""
+
+
+def test_a_mimic_joint_follows_its_leader_in_the_checks():
+    # the leader slides 1 m along x; the follower, on it, slides back half as much: it
+    # ends 0.5 m out, in the wall at 0.45 m, where it would be 1 m out without its
+    # equality (past the wall, and the straight line would hit the wall on the way)
+    m = mujoco.MjModel.from_xml_string(SLIDES)
+    p = JointPlanner(m, [m.joint("leader").id], 0.5, 1.0)
+    assert set(penetrations(m, [1.0, -0.5], {"follower"})) == {("follower", "wall")}
+    with pytest.raises(PlanningError, match="goal state is in collision: 'follower'.*'wall'"):
+        p.plan(m.qpos0.copy(), [1.0])
+    mv = p.plan(m.qpos0.copy(), [0.6])  # follower at 0.3 m: short of the wall
+    assert mv.planner == "straight"
+
+
+def test_only_pairs_with_the_robot_are_computed_and_they_are_mujocos_own():
+    # a free crate in the arm's way, sunk 5 mm in the floor: that pair is not computed
+    crate = '<body name="crate" pos="0.3 0.3 0.245"><freejoint/>'
+    crate += '<geom type="box" size="0.05 0.05 0.25"/></body>'
+    m = arm(extra=crate)
+    p = planner(m)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    robot = {m.body("link1").id, m.body("link2").id}
+    hits = 0
+    for _ in range(200):
+        q = rng.uniform(m.jnt_range[:2, 0], m.jnt_range[:2, 1])
+        qpos = full(m, q)
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        pairs = {tuple(sorted(c.geom)) for c in d.contact[: d.ncon] if c.dist < 0}
+        ours = {g for g in pairs if robot & {m.geom_bodyid[g[0]], m.geom_bodyid[g[1]]}}
+        p.is_free(qpos)  # its private data now holds the state's contacts
+        theirs = {tuple(sorted(c.geom)) for c in p.d.contact[: p.d.ncon] if c.dist < 0}
+        assert theirs == ours, q
+        assert p.is_free(qpos) == (penetrations(m, qpos, {"link1", "link2"}) == [])
+        hits += bool(ours)
+    assert 20 < hits < 180  # both kinds of state were seen
+
+
 def test_the_robot_plans_from_home_to_stow_in_the_default_facility(tmp_path_factory):
     from urdf2mjcf.facility.build import build_facility
     from urdf2mjcf.facility.recipe import load_recipe
@@ -219,7 +282,11 @@ def test_the_robot_plans_from_home_to_stow_in_the_default_facility(tmp_path_fact
     stow = np.array([0.5, 0.0, 1.5010, -0.3316, -2.2515, -3.6477, -1.5533, 1.5708])
     mv = JointPlanner(m, joints, vmax, amax, seed=1, time_limit=60).plan(home, stow)
     np.testing.assert_allclose(mv.q[-1], stow, atol=1e-9)
-    robot = {m.body(b).name for b in range(m.nbody) if m.body_rootid[b] == m.body_rootid[m.jnt_bodyid[joints[0]]]}
+    robot = {
+        m.body(b).name
+        for b in range(m.nbody)
+        if m.body_rootid[b] == m.body_rootid[m.jnt_bodyid[joints[0]]]
+    }
     for q in fine(mv.q, 0.02):
         qpos = home.copy()
         qpos[m.jnt_qposadr[joints]] = q

@@ -65,8 +65,10 @@ ITERATIONS = 25
 """RRT* iterations once a solution exists (the planner refines it meanwhile)."""
 DENSE = 0.05
 """Waypoint spacing along each path segment for the timing spline (joint-space norm)."""
-HINGE, SLIDE, FREE = (int(t) for t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE,
-                                       mujoco.mjtJoint.mjJNT_FREE))
+HINGE, SLIDE, FREE = (
+    int(t)
+    for t in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE, mujoco.mjtJoint.mjJNT_FREE)
+)
 PAD = 0.005
 """Clearance (m) beyond ``margin`` kept at the checked states of a planned path, so that
 the motion between two checks (``resolution`` apart) does not graze an obstacle; pairs
@@ -171,8 +173,10 @@ class JointPlanner:
             raise ValueError("no joints to plan")
         for j in self.joints:
             if int(m.jnt_type[j]) not in (HINGE, SLIDE):
-                raise ValueError(f"joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' is not a "
-                                 "hinge or slide joint")
+                raise ValueError(
+                    f"joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' is not a "
+                    "hinge or slide joint"
+                )
         self.vmax = np.broadcast_to(np.asarray(vmax, float), (k,)).copy()
         self.amax = np.broadcast_to(np.asarray(amax, float), (k,)).copy()
         if np.any(self.vmax <= 0) or np.any(self.amax <= 0):
@@ -215,8 +219,10 @@ class JointPlanner:
             elif int(m.jnt_type[j]) == HINGE:
                 lo[i], hi[i] = -2 * math.pi, 2 * math.pi
             else:
-                raise ValueError(f"slide joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' has "
-                                 "no range: the planner needs bounds")
+                raise ValueError(
+                    f"slide joint '{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)}' has "
+                    "no range: the planner needs bounds"
+                )
         return lo, hi
 
     def _followers(self) -> list[tuple[int, int, int, np.ndarray]]:
@@ -230,8 +236,14 @@ class JointPlanner:
                 continue
             j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
             if j2 in planned and j1 not in planned:
-                out.append((int(m.jnt_qposadr[j1]), planned[j2], int(m.jnt_qposadr[j2]),
-                            m.eq_data[e, :5].copy()))
+                out.append(
+                    (
+                        int(m.jnt_qposadr[j1]),
+                        planned[j2],
+                        int(m.jnt_qposadr[j2]),
+                        m.eq_data[e, :5].copy(),
+                    )
+                )
         return out
 
     # ---- collision checks -------------------------------------------------------------
@@ -277,8 +289,11 @@ class JointPlanner:
         c = int(np.flatnonzero(counted)[np.argmin(dist[counted])])
         body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
         return _Contact(
-            _name(m, body, int(b1[c])), _name(m, body, int(b2[c])),
-            _name(m, geom, int(geoms[c, 0])), _name(m, geom, int(geoms[c, 1])), float(dist[c]),
+            _name(m, body, int(b1[c])),
+            _name(m, body, int(b2[c])),
+            _name(m, geom, int(geoms[c, 0])),
+            _name(m, geom, int(geoms[c, 1])),
+            float(dist[c]),
         )
 
     def _contact_at(self, q: np.ndarray) -> _Contact | None:
@@ -356,8 +371,9 @@ class JointPlanner:
         b = int(attached_body)
         jnt = m.body_jntadr[b]
         if m.body_jntnum[b] != 1 or int(m.jnt_type[jnt]) != FREE:
-            raise ValueError(f"attached body '{_name(m, mujoco.mjtObj.mjOBJ_BODY, b)}' is not "
-                             "a free body")
+            raise ValueError(
+                f"attached body '{_name(m, mujoco.mjtObj.mjOBJ_BODY, b)}' is not a free body"
+            )
         self._set(self._base[self.qadr])  # start pose, nothing held yet
         d, link = self.d, self.last_body
         inv_pos, inv_quat = np.empty(3), np.empty(4)
@@ -383,8 +399,9 @@ class JointPlanner:
         t0 = time.perf_counter()
         self._base = np.asarray(qpos_full_start, float).copy()
         if self._base.shape != (self.m.nq,):
-            raise ValueError(f"qpos_full_start has shape {self._base.shape}, expected "
-                             f"({self.m.nq},)")
+            raise ValueError(
+                f"qpos_full_start has shape {self._base.shape}, expected ({self.m.nq},)"
+            )
         goal = np.asarray(q_goal, float).reshape(-1)
         if goal.shape != self.lower.shape:
             raise ValueError(f"q_goal has {goal.size} values for {self.lower.size} joints")
@@ -409,8 +426,14 @@ class JointPlanner:
         path[0] = start_true
         times, q, qd = self._timed(path)
         elapsed = time.perf_counter() - t0
-        log.info("planned move (%s): %d waypoints, length %.3f, %.2f s long, planned in %.3f s",
-                 planner, len(path), path_length(path), times[-1], elapsed)
+        log.info(
+            "planned move (%s): %d waypoints, length %.3f, %.2f s long, planned in %.3f s",
+            planner,
+            len(path),
+            path_length(path),
+            times[-1],
+            elapsed,
+        )
         return PlannedMove(times, q, qd, path, elapsed, path_length(path), straight, planner)
 
     def _in_range(self, what: str, q: np.ndarray, tol: float) -> np.ndarray:
@@ -418,8 +441,10 @@ class JointPlanner:
         if out.any():
             i = int(np.flatnonzero(out)[0])
             name = _name(self.m, mujoco.mjtObj.mjOBJ_JOINT, int(self.joints[i]))
-            raise PlanningError(f"the {what} has joint '{name}' at {q[i]:.4f}, outside its range "
-                                f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]")
+            raise PlanningError(
+                f"the {what} has joint '{name}' at {q[i]:.4f}, outside its range "
+                f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]"
+            )
         return np.clip(q, self.lower, self.upper)
 
     def _box(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
