@@ -170,6 +170,7 @@ def test_the_plot_is_a_png_beside_the_report(tmp_path):
     report = tmp_path / "trials.json"
     plot = plot_path(report)
     assert plot == tmp_path / "trials.png"
+    assert plot_path(tmp_path / "odd.png") == tmp_path / "odd-outcomes.png"  # never the report
     plot_outcomes(agg, plot)
     pixels = mpimg.imread(plot)
     assert pixels.ndim == 3 and pixels.shape[0] > 200 and pixels.shape[1] > 400

@@ -170,7 +170,10 @@ def summary_lines(agg: dict[str, Any]) -> list[str]:
 
 
 def plot_path(report: Path) -> Path:
-    """Where the plot of a JSON report goes: beside it, ``.png`` for its suffix."""
+    """Where the plot of a JSON report goes: beside it, ``.png`` for its suffix (a report
+    named ``x.png`` itself gets ``x-outcomes.png``)."""
+    if report.suffix.lower() == ".png":
+        return report.with_name(f"{report.stem}-outcomes.png")
     return report.with_suffix(".png")
 
 
