@@ -140,8 +140,9 @@ def test_the_timed_move_respects_the_velocity_and_acceleration_limits(around_the
     # qd is the derivative of q (central differences agree), from rest to rest
     np.testing.assert_allclose((v[1:] + v[:-1]) / 2, qd[1:-1], atol=0.02 * VMAX.max())
     np.testing.assert_allclose(qd[[0, -1]], 0, atol=1e-9)
-    # time-optimal to within the limits: some joint reaches its speed limit
-    assert np.max(np.abs(qd) / VMAX) > 0.9
+    # time-optimal (TOPP-RA): at nearly every instant some joint is at a limit
+    active = np.maximum(np.max(np.abs(qd[1:-1]) / VMAX, 1), np.max(np.abs(a) / AMAX, 1))
+    assert np.median(active) > 0.95
 
 
 def test_the_plan_is_deterministic_for_a_seed(around_the_post):

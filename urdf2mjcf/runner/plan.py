@@ -26,8 +26,8 @@ the move; its contacts with that body's subtree (the gripper holding it) are all
    of the joint ranges narrowed to the start-goal span plus HINGE_SLACK per hinge, OMPL's
    RNG seeded from ``seed``, motions checked at ``resolution``; it stops ITERATIONS
    iterations after its first solution (the same path for a seed on any machine) or at
-   ``time_limit`` seconds from the start of the move; then OMPL's shortcutting
-   (``simplifySolution`` to convergence, seeded too);
+   ``time_limit`` seconds from the start of the move; then OMPL's path simplifier
+   (``PathSimplifier``: rope shortcutting, vertex reduction; seeded too);
 3. TOPP-RA time-optimal timing, from rest to rest, of a cubic spline through the path
    densified to DENSE spacing (the spline keeps to the checked segments), under
    ``|qd| <= vmax`` and ``|qdd| <= amax`` per joint; sampled every SAMPLE_DT seconds and
@@ -76,6 +76,8 @@ of bodies already that close at the start or the goal (a grasp, the rail carriag
 rail) need only ``margin``."""
 HINGE_SLACK = math.pi / 2
 """How far (rad) a hinge may swing beyond the span of its start and goal while planning."""
+GRID_REFINEMENTS = 6
+"""Rounds of TOPP-RA grid refinement where its profile exceeds a limit between points."""
 RANGE_TOL = 1e-3
 """A start this far past a joint's range (rad or m) counts as at the limit."""
 
@@ -456,12 +458,21 @@ class JointPlanner:
         return np.maximum(lo, self.lower), np.minimum(hi, self.upper)
 
     def _rrtstar(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
+        from ompl import util as ou
+
+        level = ou.getLogLevel()
+        ou.setLogLevel(ou.LOG_NONE)  # OMPL prints its progress otherwise
+        try:
+            return self._rrtstar_quiet(start, goal, t0)
+        finally:
+            ou.setLogLevel(level)
+
+    def _rrtstar_quiet(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
         from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
 
         k = len(start)
-        ou.setLogLevel(ou.LOG_NONE)
         # OMPL seeds every new RNG (planner, sampler, simplifier) from this one: reseeding
         # before each plan makes a plan depend only on the seed and the problem.
         ou.RNG.setSeed(self.seed % 2147483646 + 1)  # 0 is refused by OMPL
@@ -503,8 +514,14 @@ class JointPlanner:
                 f"no collision-free path found by RRT* within the time limit of "
                 f"{self.time_limit:g} s ({planner.numIterations()} iterations)"
             )
-        ss.simplifySolution(0.0)  # shortcut to convergence (simplifyMax): seeded, deterministic
+        # OMPL's rope shortcutting (pulls the path taut along itself), then vertex
+        # reduction (seeded): as short as simplifyMax's full loop on the facility's moves
+        # for a third of its collision checks
         sol = ss.getSolutionPath()
+        simplifier = og.PathSimplifier(si)
+        simplifier.ropeShortcutPath(sol)
+        simplifier.reduceVertices(sol)
+        simplifier.collapseCloseVertices(sol)
         states = sol.getStates()
         path = np.array([[s[i] for i in range(k)] for s in states])
         path[0], path[-1] = start, goal
@@ -523,6 +540,23 @@ class JointPlanner:
             step /= 4
         raise PlanningError("the timed trajectory leaves the collision-free path")
 
+    def _over_limits(self, geo: object, grid: np.ndarray, sd: np.ndarray) -> np.ndarray:
+        """(len(grid) - 1,) bool: the grid intervals inside which the joint velocity or
+        acceleration of TOPP-RA's profile (path speed squared linear in the path parameter)
+        exceeds a limit by more than 0.1 %."""
+        u = np.array([0.25, 0.5, 0.75])
+        a, b = grid[:-1, None], grid[1:, None]
+        x2a, x2b = sd[:-1, None] ** 2, sd[1:, None] ** 2
+        s = a + u * (b - a)
+        x2 = x2a + u * (x2b - x2a)  # path speed squared
+        sdd = (x2b - x2a) / (2 * (b - a))  # path acceleration, constant in the interval
+        d1 = np.asarray(geo(s.ravel(), 1)).reshape(*s.shape, -1)  # type: ignore[operator]
+        d2 = np.asarray(geo(s.ravel(), 2)).reshape(*s.shape, -1)  # type: ignore[operator]
+        qd = d1 * np.sqrt(x2)[..., None]
+        qdd = d2 * x2[..., None] + d1 * sdd[..., None]
+        over = (np.abs(qd) > self.vmax * 1.001) | (np.abs(qdd) > self.amax * 1.001)
+        return np.asarray(over.any(axis=(1, 2)))
+
     def _topp(
         self, path: np.ndarray, step: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -538,9 +572,20 @@ class JointPlanner:
             toppra.constraint.JointVelocityConstraint(np.stack([-self.vmax, self.vmax], 1)),
             toppra.constraint.JointAccelerationConstraint(np.stack([-self.amax, self.amax], 1)),
         ]
-        # toppra's own grid (refined where the spline bends) holds the limits better than a
-        # uniform one at the path's corners
-        algo = toppra.algorithm.TOPPRA(constraints, geo, parametrizer="ParametrizeConstAccel")
+        # TOPP-RA holds the limits at its grid points; between them (constant path
+        # acceleration) a bend of the spline can exceed them: refine the grid there
+        grid = np.asarray(toppra.interpolator.propose_gridpoints(geo), float)
+        for _ in range(GRID_REFINEMENTS):
+            algo = toppra.algorithm.TOPPRA(
+                constraints, geo, gridpoints=grid, parametrizer="ParametrizeConstAccel"
+            )
+            sd = algo.compute_parameterization(0.0, 0.0)[1]
+            if sd is None or not np.all(np.isfinite(sd)):
+                break
+            bad = self._over_limits(geo, grid, np.asarray(sd, float))
+            if not bad.any():
+                break
+            grid = np.union1d(grid, (grid[:-1][bad] + grid[1:][bad]) / 2)
         traj = algo.compute_trajectory(0.0, 0.0)
         if traj is None:
             raise PlanningError("TOPP-RA found no timing of the path within the joint limits")
