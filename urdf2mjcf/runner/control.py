@@ -86,6 +86,20 @@ class Controller:
             self.step()
         return T
 
+    def play(self, times: np.ndarray, q: np.ndarray) -> float:
+        """Follow a timed joint trajectory (a planned move: ``q[i]`` at ``times[i]`` s,
+        from the current target), its samples linearly interpolated at every physics
+        step; returns its duration."""
+        times = np.asarray(times, float)
+        q = np.atleast_2d(np.asarray(q, float))
+        n = max(1, int(round(float(times[-1]) / self.dt)))
+        for k in range(1, n + 1):
+            t = min(k * self.dt, float(times[-1]))
+            target = np.array([np.interp(t, times, q[:, j]) for j in range(q.shape[1])])
+            self.target = np.clip(target, self.r.lower, self.r.upper)
+            self.step()
+        return float(times[-1])
+
     def move_to(self, q: np.ndarray, duration: float | None = None) -> float:
         return self.follow(np.vstack([self.target, np.asarray(q, float)]), duration)
 

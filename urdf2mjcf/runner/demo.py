@@ -2,12 +2,16 @@
 
 Step kinds (``kind:`` in the file):
 
-``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value}
+``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value};
+             planned collision-free (runner/plan.py: OMPL's RRT* with MuJoCo as the
+             collision checker, TOPP-RA timing), as the paper's MoveIt stack did; a
+             carried bag moves with the hand and may touch only it
 ``pose``     the grasp site to ``position`` with tool axes ``z``/``x`` (or the rotation
              ``orientation_xyzw``, a quaternion x, y, z, w) given in ``frame`` (``world``,
              a body of the model, or ``handle``: the perceived strap); ``site`` names
              another of the robot's sites (``tool``: tool0, as published poses give it);
-             a straight Cartesian line through dense IK
+             a straight Cartesian line through dense IK, or with ``joint_space`` the
+             IK solution reached by a planned joint move
 ``relative`` a straight move by ``tool`` (tool-frame offset) or ``world`` offset
 ``hinge``    the arc around ``joint``: ``steps`` x ``step_deg``, orientation held or not
 ``gripper``  ``open`` / ``close``
@@ -30,7 +34,8 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from . import ik, perception
+from ..errors import PlanningError
+from . import ik, perception, plan
 from .control import Controller, path_duration
 from .hinge import arc, hinge_axis, turned
 from .judge import ContactJudge, stowed
@@ -50,6 +55,14 @@ class StepResult:
     duration: float  # simulated seconds
     contacts: list[str] = field(default_factory=list)
     message: str = ""
+    # a planned joint move: planner ("straight" or "RRTstar"), planning_time_s,
+    # path_length (joint space, rad and m mixed), duration_s
+    plan: dict | None = None
+
+
+# Joint acceleration limits for planned moves (rail, lift, arm; m/s^2, rad/s^2): ours,
+# well inside what the servos follow without lag.
+AMAX = (0.3, 0.5, 1.5, 1.5, 2.0, 3.0, 3.0, 3.0)
 
 
 @dataclass
@@ -115,6 +128,8 @@ class Demo:
         self.handle_info: dict | None = None
         self.frames = Path(frames) if frames else None
         self.log = log
+        self._planner: plan.JointPlanner | None = None
+        self.last_plan: dict | None = None
         self._cams: dict[int, perception.Camera] = {}
         self._scene_renderer: mujoco.Renderer | None = None
         self._ik = ik.ArmIK(
@@ -165,6 +180,10 @@ class Demo:
     ) -> np.ndarray:
         res = self._ik.solve(self.d, pos, rot, q0=q0)
         if not res.ok:
+            # near a joint limit the damping and posture tasks slow the last 0.1 mm down:
+            # go on from where it stopped
+            res = self._ik.solve(self.d, pos, rot, q0=res.q, max_iter=1000)
+        if not res.ok:
             raise StepError(
                 f"no IK solution for the {self.m.site(self.site).name} pose at "
                 f"{np.round(pos, 3).tolist()} (left {1000 * res.pos_err:.1f} mm, "
@@ -195,6 +214,40 @@ class Demo:
             raise StepError("the Cartesian path jumps in joint space (a branch change of the IK)")
         return joints
 
+    def planned_move(self, q: np.ndarray, carried: bool) -> None:
+        """A collision-free, timed joint move to ``q`` (a carried bag held by the hand)."""
+        if self._planner is None:
+            names = [self.m.body(b).name for b in range(self.m.nbody)]
+            allowed = [  # the carriage runs 4.5 mm beside the base's cable tray, by design
+                (names.index(a), names.index(b))
+                for a, b in (("rail_base_link", "rail_carriage_link"),
+                             ("rail_base_link", "carriage_link"))
+                if a in names and b in names
+            ]
+            self._planner = plan.JointPlanner(
+                self.m,
+                [int(self.m.dof_jntid[d]) for d in self.r.dofs],
+                self.vmax,
+                AMAX,
+                allowed_pairs=allowed,
+                seed=0,
+            )
+        self._planner.vmax = np.asarray(self.ctl.vmax, float).copy()
+        start = self.d.qpos.copy()
+        start[self.r.qpos] = self.ctl.target  # from where the servos are told to be
+        bag = self.fac.body(self.bag["body"]) if carried else None
+        try:
+            move = self._planner.plan(start, q, attached_body=bag)
+        except PlanningError as exc:
+            raise StepError(f"no collision-free joint move: {exc}") from None
+        duration = self.ctl.play(move.times, move.q)
+        self.last_plan = {
+            "planner": move.planner,
+            "planning_time_s": round(move.planning_time_s, 4),
+            "path_length": round(move.path_length, 4),
+            "duration_s": round(duration, 3),
+        }
+
     # ------------------------------------------------------------ steps
     def run_step(self, step: dict) -> None:
         kind = step["kind"]
@@ -211,7 +264,7 @@ class Demo:
             q[2:] = step["arm"]
         for name, value in step.get("set", {}).items():
             q[self.r.joint_names.index(name)] = value
-        self.ctl.move_to(q, step.get("duration"))
+        self.planned_move(q, step.get("carried", False))
 
     def _target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
         origin, R0 = _frame(self, step.get("frame", "world"))
@@ -241,7 +294,7 @@ class Demo:
             q = self.ik(
                 pos, R, q0=np.array(step["seed"], float) if "seed" in step else self.ctl.target
             )
-            self.ctl.move_to(q, step.get("duration"))
+            self.planned_move(q, step.get("carried", False))
             return
         path = self.cartesian_path([(pos, R)], self.ctl.target.copy())
         self.ctl.follow(path, step.get("duration"))
@@ -342,6 +395,7 @@ class Demo:
             )
             ts = self.d.time
             ok, msg = True, ""
+            self.last_plan = None
             try:
                 self.run_step(step)
             except StepError as exc:
@@ -353,7 +407,9 @@ class Demo:
                 msg = self._check(step["check"])
                 ok = not msg
             contacts = sorted(f"{a}~{b}" for a, b in self.judge.log.intended)
-            res = StepResult(name, step["kind"], ok, round(self.d.time - ts, 3), contacts, msg)
+            res = StepResult(
+                name, step["kind"], ok, round(self.d.time - ts, 3), contacts, msg, self.last_plan
+            )
             results.append(res)
             self.log(
                 f"{name:<24} {'ok' if ok else 'FAIL':<5} {res.duration:7.2f} s  "
