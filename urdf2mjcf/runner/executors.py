@@ -68,9 +68,10 @@ def _run_local(
     if not jobs:
         return []
     # spawn, not fork: MuJoCo's OpenGL contexts and thread pools do not survive a fork
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         max_workers=workers or min(len(jobs), 8), mp_context=mp.get_context("spawn")
-    ) as pool:
+    )
+    try:
         pending = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -79,6 +80,10 @@ def _run_local(
                 results[i] = fut.result()
                 if on_done:
                     on_done(i, results[i])
+    except BaseException:  # Ctrl-C or a failed job: the queued jobs do not start
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()
     return [results[i] for i in range(len(jobs))]
 
 
@@ -125,13 +130,18 @@ def _run_ray(
         refs = {task.remote(job): i for i, job in enumerate(jobs)}
         results: dict[int, R] = {}
         pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for ref in done:
-                i = refs[ref]
-                results[i] = ray.get(ref)
-                if on_done:
-                    on_done(i, results[i])
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                for ref in done:
+                    i = refs[ref]
+                    results[i] = ray.get(ref)
+                    if on_done:
+                        on_done(i, results[i])
+        except BaseException:  # Ctrl-C or a failed job: the cluster drops what is left
+            for ref in pending:
+                ray.cancel(ref)
+            raise
         return [results[i] for i in range(len(jobs))]
     finally:
         if started:
