@@ -1,7 +1,8 @@
 """Benchmark: convert the whole example-robot-data corpus cold and warm.
 
-Cold: an empty decomposition cache (every non-convex collision mesh goes
-through CoACD). Warm: the same cache again (no decomposition work).
+Cold: an empty cache (every mesh decoded, every non-convex collision mesh
+through CoACD). Warm: the same cache again (no decoding, no decomposition).
+bench/convert_ratio.py compares the warm run with MuJoCo's own URDF load.
 
     python bench/convert_corpus.py                 # print the table
     python bench/convert_corpus.py --write-docs    # also update docs/benchmarks.md
@@ -33,7 +34,7 @@ def run_pass(
     stats = {"decomposed": 0, "cached": 0, "failed": []}
     start = time.perf_counter()
     for urdf in urdfs:
-        out = out_root / urdf.stem / "robot.xml"
+        out = out_root / urdf.parent.parent.name / urdf.stem / "robot.xml"  # two anymal.urdf
         try:
             report = urdf2mjcf.convert(
                 urdf,
