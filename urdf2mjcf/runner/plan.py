@@ -24,7 +24,10 @@ the move; its contacts with that body's subtree (the gripper holding it) are all
    rad and m mixed); when free it is the path (``planner == "straight"``);
 2. otherwise RRT* (``ompl.geometric.RRTstar``, OMPL 2.0's nanobind bindings) in the box
    of the joint ranges narrowed to the start-goal span plus HINGE_SLACK per hinge, OMPL's
-   RNG seeded from ``seed``, motions checked at ``resolution``; it stops ITERATIONS
+   RNG seeded from ``seed``, motions checked at ``resolution``, its tree rooted at the
+   more confined end (fewer free states among OPENNESS_SAMPLES seeded ones within
+   OPENNESS_RADIUS: a pose in a narrow place is far easier to leave than to enter, and
+   the path is reversed when rooted at the goal); it stops ITERATIONS
    iterations after its first solution (the same path for a seed on any machine) or at
    ``time_limit`` seconds from the start of the move; then OMPL's path simplifier
    (``PathSimplifier``: rope shortcutting, vertex reduction; seeded too);
@@ -76,6 +79,9 @@ of bodies already that close at the start or the goal (a grasp, the rail carriag
 rail) need only ``margin``."""
 HINGE_SLACK = math.pi / 2
 """How far (rad) a hinge may swing beyond the span of its start and goal while planning."""
+OPENNESS_SAMPLES = 32
+OPENNESS_RADIUS = 0.3
+"""Random states (and their joint-space radius) that tell how confined a path's end is."""
 GRID_REFINEMENTS = 6
 """Rounds of TOPP-RA grid refinement where its profile exceeds a limit between points."""
 RANGE_TOL = 1e-3
@@ -422,7 +428,13 @@ class JointPlanner:
             if straight:
                 path, planner = np.vstack([start, goal]), "straight"
             else:
-                path, planner = self._rrtstar(start, goal, t0), "RRTstar"
+                # RRT* grows one tree: root it at the more confined end (a pose in a
+                # narrow place is reached far more easily by leaving it than by entering)
+                if self._openness(goal) < self._openness(start):
+                    path = self._rrtstar(goal, start, t0)[::-1].copy()
+                else:
+                    path = self._rrtstar(start, goal, t0)
+                planner = "RRTstar"
         finally:
             self._pad = None
         path[0] = start_true
@@ -448,6 +460,18 @@ class JointPlanner:
                 f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]"
             )
         return np.clip(q, self.lower, self.upper)
+
+    def _openness(self, q: np.ndarray) -> float:
+        """Fraction of OPENNESS_SAMPLES seeded states within OPENNESS_RADIUS of ``q`` (in
+        the joint ranges) that are free: how confined ``q`` is."""
+        rng = np.random.default_rng(self.seed)
+        k = len(q)
+        v = rng.normal(size=(OPENNESS_SAMPLES, k))
+        v *= (rng.uniform(size=(OPENNESS_SAMPLES, 1)) ** (1 / k)) / np.linalg.norm(
+            v, axis=1, keepdims=True
+        )
+        states = np.clip(q + OPENNESS_RADIUS * v, self.lower, self.upper)
+        return sum(self._valid(x) for x in states) / OPENNESS_SAMPLES
 
     def _box(self, start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The sampling box: a hinge may swing HINGE_SLACK beyond the span of its start and
