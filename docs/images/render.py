@@ -23,8 +23,8 @@ from urdf2mjcf.facility.build import build_facility  # noqa: E402
 from urdf2mjcf.facility.recipe import load_recipe  # noqa: E402
 
 VIEWS = {
-    "imetro": [("overview", (0.6, 0.5, 0.7), 6.2, 55, -30), ("seat", (-0.68, 0.9, 0.8), 2.6, 20, -35)],
-    "imetro-two-hatches": [("overview", (1.0, 0.2, 0.7), 8.0, 60, -35)],
+    "imetro": [("overview", (-0.2, 0.7, 0.6), 6.2, 70, -30), ("seat", (-1.65, 0.85, 0.45), 2.4, 55, -38)],
+    "imetro-two-hatches": [("overview", (0.6, 0.4, 0.7), 8.5, 70, -35)],
 }
 
 

@@ -68,6 +68,69 @@ def test_facility_compiles_and_lists_its_contents(built, recipe):
     assert not any(d.warning[i].number for i in range(len(d.warning)))
 
 
+# facility-facts.md section 1: the real facility's layout (world frame), the frames of
+# the real description: (x, y, z), yaw
+FACT_POSES = {
+    "trainer": ((-2.0992, 2.4346, 0.0), 4.7112),
+    "hatch_4060": ((1.402, -0.802, -0.002), 0.0),
+    "ctb": ((0.8, 0.8, 0.005), math.pi / 2),  # our CTB frame: its bottom centre
+}
+
+
+def _yaw(r: np.ndarray) -> float:
+    return math.atan2(r[1, 0], r[0, 0])
+
+
+def _same_yaw(a: float, b: float) -> bool:
+    return abs(math.remainder(a - b, 2 * math.pi)) < 1e-6
+
+
+def test_default_facility_is_laid_out_as_the_real_one(built):
+    """facility.json reports the fact sheet's poses, and the compiled bodies stand there:
+    the trainer frame, the bench seat at (1.261, 0, 0.477) in it with the lid hinge
+    0.127 m in front and 0.0475 m above, the hatch frame and its door hinge at
+    (0.678, 0.057, 0.716) in it, the rack (the real frame (0.508, 1.168, 0.984) rpy
+    (pi/2, 0, 0) is our rack frame 0.984 m up, y up, z out of the front), MERLIN in it."""
+    m, d, manifest = _load(built["imetro"])
+    comps = manifest["components"]
+    for name, (xyz, yaw) in FACT_POSES.items():
+        assert comps[name]["pose"]["xyz"] == pytest.approx(list(xyz), abs=1e-9), name
+        assert _same_yaw(comps[name]["pose"]["yaw"], yaw), name
+    assert comps["express_rack"]["pose"]["xyz"] == pytest.approx([0.508, 1.168, 0.0])
+
+    def frame(body: str) -> tuple[np.ndarray, np.ndarray]:
+        b = m.body(body).id
+        return d.xpos[b].copy(), d.xmat[b].reshape(3, 3).copy()
+
+    p, r = frame("trainer_frame")
+    np.testing.assert_allclose(p, FACT_POSES["trainer"][0], atol=1e-9)
+    assert _same_yaw(_yaw(r), FACT_POSES["trainer"][1])
+    bench, r_bench = frame("trainer_bench_seat")
+    np.testing.assert_allclose(bench, p + r @ [1.261, 0.4475, 0.477], atol=1e-9)
+    lid = m.joint("trainer_lid_joint").id
+    np.testing.assert_allclose(d.xanchor[lid], bench + r_bench @ [0.127, 0, 0.0475], atol=1e-3)
+    np.testing.assert_allclose(d.xaxis[lid], -r[:, 1], atol=1e-9)
+    # the real description's lid hinge line (its bench_lid body: (-2.10085, 1.0466, 0.5244))
+    assert d.xanchor[lid][1] == pytest.approx(1.0466, abs=2e-3)
+    assert d.xanchor[lid][2] == pytest.approx(0.5244, abs=2e-3)
+
+    p, r = frame("hatch_4060_frame")
+    np.testing.assert_allclose(p, FACT_POSES["hatch_4060"][0], atol=1e-9)
+    door = m.joint("hatch_4060_door_joint").id
+    np.testing.assert_allclose(d.xanchor[door], p + r @ [0.678, 0.057, 0.716], atol=1e-6)
+
+    rack_real = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)  # rpy (pi/2, 0, 0)
+    p, r = frame("express_rack_rack")
+    np.testing.assert_allclose(p + [0, 0, 0.984], [0.508, 1.168, 0.984], atol=1e-9)
+    # the real frame's x, y (up), z (out of the front) are our y, z and x
+    np.testing.assert_allclose(r[:, [1, 2, 0]], rack_real, atol=1e-9)
+    # MERLIN at (-0.229, 0.083, 0) in the real rack frame
+    merlin = [m.body(b).name for b in range(m.nbody) if m.body(b).name.startswith("express_rack_merlin")]
+    assert merlin
+    ctb, r_ctb = frame("ctb")
+    np.testing.assert_allclose(ctb[:2], [0.8, 0.8], atol=1e-3)
+
+
 @pytest.mark.parametrize("recipe", [p.stem for p in RECIPES])
 def test_robot_holds_home_mockups_stay_put_and_ctb_settles_upright(built, recipe):
     m, d, manifest = _load(built[recipe])

@@ -126,12 +126,27 @@ def test_the_demo_succeeds_on_the_default_facility(facility, tmp_path):
     assert "SUCCESS" in res.output and "open_lid" in res.output
     data = json.loads(report.read_text())
     assert data["ok"] and all(s["ok"] for s in data["steps"])
+    # joint moves are planned: planner, planning time and path length in the report
+    planned = {s["name"]: s["plan"] for s in data["steps"] if s.get("plan")}
+    assert {"init", "approach_bench_seat", "stow", "rail_to_0.3", "home"} <= set(planned)
+    for plan in planned.values():
+        assert plan["planner"] in ("straight", "RRTstar")
+        assert plan["planning_time_s"] >= 0 and plan["path_length"] >= 0
     steps = {s["name"]: s for s in data["steps"]}
     assert any("trainer_lid" in c for c in steps["open_lid"]["contacts"])
     assert any("ctb" in c and "finger" in c for c in steps["close"]["contacts"])
     assert data["verdict"]["tilt_deg"] < 10 and data["verdict"]["speed"] < 0.01
     assert abs(data["handle"]["position"][0] - 0.8) < 0.01  # seen where the bag lies
     assert (frames / "find_handle_wrist.png").is_file() and (frames / "final.png").is_file()
+
+
+@pytest.mark.slow
+def test_the_compact_layouts_demo_succeeds(tmp_path):
+    out = tmp_path / "imetro-compact"
+    recipe = load_recipe(ROOT / "recipes" / "imetro-compact.yaml")
+    build_facility(recipe, out, root=ROOT, components=False)
+    res = _run(out, spec=load_waypoints(ROOT / "recipes" / "demo" / "imetro-compact.yaml"))
+    assert res.ok, (res.failed_step, res.message)
 
 
 @pytest.mark.slow
