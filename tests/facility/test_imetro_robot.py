@@ -38,9 +38,9 @@ ARM = [
 ACTUATED = ["rail", "lift", *ARM, "finger_1_joint"]
 MIMICS = {"lift_middle": ("lift", 0.5), "finger_2_joint": ("finger_1_joint", 1.0)}
 # The home pose given to ros2_control as initial_value (and so the home keyframe):
-# the published demo_home of the arm (facility-facts.md section 4), rail and lift 0.
-DEMO_HOME = (3.1927, -2.3913, -1.7760, -0.4700, -1.6177, -1.6134)
-HOME = {"rail": 0.0, "lift": 0.0, **dict(zip(ARM, DEMO_HOME, strict=True)), "finger_1_joint": 0.025}
+# the published stow pose of the arm (facility-facts.md section 4), rail and lift 0.
+STOW = (1.5010, -0.3316, -2.2515, -3.6477, -1.5533, 1.5708)
+HOME = {"rail": 0.0, "lift": 0.0, **dict(zip(ARM, STOW, strict=True)), "finger_1_joint": 0.025}
 # The real robot's fixed frame chain, parent -> child: (xyz, rpy), from the public
 # description (clr_macro.xacro and the vention rail / ewellix lift macros it includes)
 # and facility-facts.md section 3; the joints' origins are the moving joints' at zero.
@@ -463,9 +463,10 @@ def test_home_pose_is_free_of_contact(model):
         gap = mujoco.mj_geomDistance(m, d, g1, g2, 0.05, None)
         in_the_arm = {int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])} & in_arm
         assert gap > (0.02 if in_the_arm else 0.003), (m.geom(g1).name, m.geom(g2).name)
-    # demo_home: the tool horizontal, pointing +y, 1.1 m above the floor
+    # stow: the tool pointing down in front (+y) of the lift, 1.2 m above the floor
     p_tool, r_tool = _frame(d, m, "tool0")
-    assert r_tool[1, 2] > 0.99 and p_tool[2] > 1.0
+    assert r_tool[2, 2] < -0.98 and p_tool[2] > 1.1
+    assert p_tool[1] - _frame(d, m, "base_link")[0][1] > 0.5
 
 
 def _ancestor(m: mujoco.MjModel, body: int, ancestor: int) -> bool:
