@@ -24,18 +24,19 @@ the move; its contacts with that body's subtree (the gripper holding it) are all
    rad and m mixed); when free it is the path (``planner == "straight"``);
 2. otherwise RRT* (``ompl.geometric.RRTstar``, OMPL 2.0's nanobind bindings) in the box
    of the joint ranges narrowed to the start-goal span plus HINGE_SLACK per hinge, OMPL's
-   RNG seeded from ``seed``, motions checked at ``resolution``, its tree rooted at the
-   more confined end (fewer free states among OPENNESS_SAMPLES seeded ones within
-   OPENNESS_RADIUS: a pose in a narrow place is far easier to leave than to enter, and
-   the path is reversed when rooted at the goal); it stops ITERATIONS
-   iterations after its first solution (the same path for a seed on any machine) or at
-   ``time_limit`` seconds from the start of the move; then OMPL's path simplifier
-   (``PathSimplifier``: rope shortcutting, vertex reduction; seeded too);
+   RNG seeded from ``seed``, steps of at most RRT_RANGE, motions checked at
+   ``resolution``. Its one tree is rooted at the more confined end (fewer free states
+   among OPENNESS_SAMPLES seeded ones within OPENNESS_RADIUS: a pose in a narrow place is
+   far easier to leave than to enter; the path is reversed when rooted at the goal). It
+   stops ITERATIONS iterations after its first solution (the same path for a seed on any
+   machine) or at ``time_limit`` seconds from the start of the move; then OMPL's
+   ``PathSimplifier`` (rope shortcutting, vertex reduction; seeded too);
 3. TOPP-RA time-optimal timing, from rest to rest, of a cubic spline through the path
    densified to DENSE spacing (the spline keeps to the checked segments), under
-   ``|qd| <= vmax`` and ``|qdd| <= amax`` per joint; sampled every SAMPLE_DT seconds and
-   stretched in time where the samples' finite differences exceed a limit between
-   TOPP-RA's grid points; the spline is checked against collisions again.
+   ``|qd| <= vmax`` and ``|qdd| <= amax`` per joint. TOPP-RA holds the limits at its grid
+   points; the grid is refined where its profile exceeds a limit in between, and the
+   samples (every SAMPLE_DT seconds) are stretched in time if their finite differences
+   still do. The spline is checked against collisions again.
 
 States of a planned path (steps 1 and 2) keep PAD metres beyond ``margin`` from every
 pair of bodies that are not already that close at the start or the goal, so that the
@@ -79,6 +80,11 @@ of bodies already that close at the start or the goal (a grasp, the rail carriag
 rail) need only ``margin``."""
 HINGE_SLACK = math.pi / 2
 """How far (rad) a hinge may swing beyond the span of its start and goal while planning."""
+RRT_RANGE = 0.5
+"""RRT*'s longest motion (joint-space norm). OMPL's default, a fifth of the space's extent
+(about 1.7 here), costs many checks per step and rarely connects into a confined pose: on
+the facility's blocked moves 0.5 planned each of 8 seeded runs in under 1 s where the
+default took 1 to 18 s or failed in 20 s."""
 OPENNESS_SAMPLES = 32
 OPENNESS_RADIUS = 0.3
 """Random states (and their joint-space radius) that tell how confined a path's end is."""
@@ -197,6 +203,7 @@ class JointPlanner:
         self.time_limit = float(time_limit)
         self.resolution = float(resolution)
         self.robot = _subtree(m, m.jnt_bodyid[self.joints])
+        self._geom_body = m.geom_bodyid.copy()
         self._contype0 = m.geom_contype.copy()
         self._conaffinity0 = m.geom_conaffinity.copy()
         self.ignored = np.zeros(m.nbody, bool)
@@ -212,9 +219,12 @@ class JointPlanner:
         # per plan(): the full state at the start and the held body, if any
         self._base = m.qpos0.copy()
         self._held: tuple[int, int, np.ndarray, np.ndarray] | None = None
+        # per pair of bodies: a contact closer than this counts (-inf: never); the second
+        # adds the clearance kept while a path is planned
+        self._limit_free = np.full((m.nbody, m.nbody), -np.inf)
+        self._limit_plan: np.ndarray | None = None
         self._robot_now, self._allowed_now = self.robot, self.allowed
         self._use(self.robot, self.allowed)
-        self._pad: np.ndarray | None = None  # (nbody, nbody) clearance beyond margin, m
 
     # ---- model facts ----------------------------------------------------------------
 
@@ -274,24 +284,16 @@ class JointPlanner:
             mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
 
-    def _first_contact(self, pad: np.ndarray | None = None) -> _Contact | None:
-        """The closest counted contact closer than ``margin`` (plus ``pad[body1, body2]``)
-        in the private data, or None."""
+    def _first_contact(self, limit: np.ndarray | None = None) -> _Contact | None:
+        """The closest counted contact in the private data (closer than ``limit`` of its
+        pair of bodies, by default ``margin`` for the pairs that count), or None."""
         m, d = self.m, self.d
-        n = d.ncon
-        if n == 0:
+        if d.ncon == 0:
             return None
-        geoms = d.contact.geom[:n]
-        dist = d.contact.dist[:n]
-        b1, b2 = m.geom_bodyid[geoms[:, 0]], m.geom_bodyid[geoms[:, 1]]
-        limit = self.margin if pad is None else self.margin + pad[b1, b2]
-        counted = (
-            (dist < limit)
-            & (self._robot_now[b1] | self._robot_now[b2])
-            & ~self.ignored[b1]
-            & ~self.ignored[b2]
-            & ~self._allowed_now[b1, b2]
-        )
+        contact = d.contact
+        geoms, dist = contact.geom, contact.dist
+        b1, b2 = self._geom_body[geoms[:, 0]], self._geom_body[geoms[:, 1]]
+        counted = dist < (self._limit_free if limit is None else limit)[b1, b2]
         if not counted.any():
             return None
         c = int(np.flatnonzero(counted)[np.argmin(dist[counted])])
@@ -311,7 +313,7 @@ class JointPlanner:
     def _valid(self, q: np.ndarray) -> bool:
         """A state of the path being planned: clear by ``margin`` plus its pairs' pad."""
         self._set(q)
-        return self._first_contact(self._pad) is None
+        return self._first_contact(self._limit_plan) is None
 
     def _free(self, q: np.ndarray) -> bool:
         self._set(q)
@@ -333,6 +335,9 @@ class JointPlanner:
         contact bits so that every pair MuJoCo would test with a robot geom is still tested
         (same contype/conaffinity rule) and pairs without one are not computed at all."""
         self._robot_now, self._allowed_now = robot, allowed
+        counts = (robot[:, None] | robot[None, :]) & ~allowed
+        counts &= ~self.ignored[:, None] & ~self.ignored[None, :]
+        self._limit_free = np.where(counts, self.margin, -np.inf)
         m, ct0, ca0 = self.m, self._contype0, self._conaffinity0
         body = m.geom_bodyid
         mine = robot[body] & ~self.ignored[body]
@@ -422,7 +427,7 @@ class JointPlanner:
             if hit is not None:
                 raise PlanningError(f"the {what} state is in collision: {hit}")
 
-        self._pad = self._pads((start, goal))
+        self._limit_plan = self._limit_free + self._pads((start, goal))
         try:
             straight = self._segment_free(start, goal)
             if straight:
@@ -436,7 +441,7 @@ class JointPlanner:
                     path = self._rrtstar(start, goal, t0)
                 planner = "RRTstar"
         finally:
-            self._pad = None
+            self._limit_plan = None
         path[0] = start_true
         times, q, qd = self._timed(path)
         elapsed = time.perf_counter() - t0
@@ -512,6 +517,7 @@ class JointPlanner:
         si = ss.getSpaceInformation()
         si.setStateValidityCheckingResolution(self.resolution / space.getMaximumExtent())
         planner = og.RRTstar(si)
+        planner.setRange(RRT_RANGE)
         ss.setPlanner(planner)
         a, b = space.allocState(), space.allocState()
         for i in range(k):
