@@ -116,7 +116,7 @@ def test_robot_and_bag_collide_with_every_geom_and_mockups_are_fixtures(built, r
     if "robot" in manifest["components"]:
         robot = subtree(m, manifest["components"]["robot"]["roles"]["joints"][0])
         agents |= robot
-        assert len(colliding_geoms(m, robot)) == 27
+        assert len(colliding_geoms(m, robot)) == 36
     bag = subtree(m, manifest["components"]["ctb"]["joints"][0])
     agents |= bag
     everything = colliding_geoms(m)
