@@ -207,6 +207,9 @@ def urdf2mjcf_command(
     """Convert a URDF or xacro robot description SOURCE into MuJoCo MJCF.
 
     xacro arguments are given as NAME:=VALUE, exactly as with ROS.
+
+    Many robots into one tree: 'urdf2mjcf batch PATHS... -o OUT' (see its --help).
+    The cache: 'urdf2mjcf cache info|clear'.
     """
     from . import api  # keep `--help` fast
     from .output import check_file, write_json
