@@ -154,8 +154,14 @@ def test_a_crashed_trial_is_a_failure_at_error():
 
 
 def test_reason_drops_measured_numbers_only():
-    assert reason_of("tilted 12.5 deg, -3 mm/s, 1e-3 m") == "tilted # deg, # mm/s, # m"
+    assert (
+        reason_of("tilted 12.5 deg, -3 mm/s, 1e-3 m, at 3.") == "tilted # deg, # mm/s, # m, at #."
+    )
     assert reason_of("no 'trainer_seat_bin'") == "no 'trainer_seat_bin'"
+    assert (
+        reason_of("unintended contact: finger_1_link with rail_to_0.5 (3.2 mm deep)")
+        == "unintended contact: finger_1_link with rail_to_0.5 (# mm deep)"
+    )
 
 
 def test_summary_names_rate_interval_failures_and_the_replay_command():

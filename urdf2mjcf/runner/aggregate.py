@@ -44,12 +44,13 @@ def wilson_interval(successes: int, trials: int, confidence: float = 0.95) -> tu
     return low, high
 
 
-_NUMBER = re.compile(r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?")
+_NUMBER = re.compile(r"(?<![\w.])[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?!\w|\.\d)")
+"""A number on its own: not the digits of a name (``finger_1_link``, ``rail_to_0.5``)."""
 
 
 def reason_of(message: str) -> str:
-    """A failure message with its numbers replaced by ``#``: trials that failed the same
-    way with other measured values count as one reason."""
+    """A failure message with its measured numbers replaced by ``#``: trials that failed the
+    same way with other values count as one reason; the names in it stay whole."""
     return _NUMBER.sub("#", message.strip()) or "(no message)"
 
 
