@@ -120,9 +120,17 @@ def _run_ray(
                     log_to_driver=False,  # our progress lines, not the workers' logs
                 )
         except (ConnectionError, RuntimeError, ValueError) as exc:
+            # Ray >= 2.59 starts clusters with token authentication; a driver connecting by
+            # address sends the token only with RAY_AUTH_MODE=token, else it is refused.
+            hint = (
+                "; is it running (ray status), and if it uses token authentication, is "
+                "RAY_AUTH_MODE=token set here with its token (see docs/scale.md)?"
+                if address
+                else ""
+            )
             where = f"at {address}" if address else "here"
             raise ExecutorError(
-                f"cannot start or reach a Ray cluster {where}: {exc}", element="--address"
+                f"cannot start or reach a Ray cluster {where}: {exc}{hint}", element="--address"
             ) from None
         started = True
     try:
