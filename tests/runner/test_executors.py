@@ -138,3 +138,6 @@ def test_facility_demo_without_ray_refuses_the_ray_executor_before_running(facil
     lines = proc.stderr.splitlines()
     assert len(lines) == 1 and "pip install 'mjcf-forge[ray]'" in lines[0], proc.stderr
     assert list(tmp_path.iterdir()) == []
+
+    res = CliRunner().invoke(facility_demo_command, [str(facility), "--executor", "ray"])
+    assert res.exit_code == 2 and "--executor ray runs --trials" in res.output, res.output
