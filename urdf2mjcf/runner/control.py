@@ -51,13 +51,25 @@ class Controller:
 
     def step(self, n: int = 1) -> None:
         for _ in range(n):
-            self.d.ctrl[self.r.actuators] = self.target
-            self.d.ctrl[self.r.gripper_actuator] = self.gripper
-            mujoco.mj_step(self.m, self.d)
-            if self.monitor is not None:
-                self.monitor()
-            for f in self.on_step:
-                f()
+            self._step()
+
+    def _step(self) -> None:
+        d = self.d
+        d.ctrl[self.r.actuators] = self.target
+        d.ctrl[self.r.gripper_actuator] = self.gripper
+        mujoco.mj_step(self.m, d)
+        if self.monitor is not None:
+            self.monitor()
+        for f in self.on_step:
+            f()
+
+    def _track(self, targets: np.ndarray) -> None:
+        """Step once per row of ``targets`` (joint targets, computed for the whole
+        move at once: per-step numpy calls cost more than the physics step)."""
+        targets = np.clip(targets, self.r.lower, self.r.upper)
+        for row in targets:
+            self.target = row
+            self._step()
 
     def wait(self, seconds: float) -> None:
         self.step(int(round(seconds / self.dt)))
@@ -73,17 +85,15 @@ class Controller:
         T = duration or path_duration(path, self.vmax)
         n = max(1, int(round(T / self.dt)))
         total = cum[-1]
-        for k in range(1, n + 1):
-            s = quintic(k / n)
-            if total <= 0:
-                q = path[-1]
-            else:
-                u = s * total
-                i = min(int(np.searchsorted(cum, u, side="right")) - 1, len(path) - 2)
-                w = (u - cum[i]) / max(cum[i + 1] - cum[i], 1e-12)
-                q = path[i] + w * (path[i + 1] - path[i])
-            self.target = np.clip(q, self.r.lower, self.r.upper)
-            self.step()
+        s = np.asarray(quintic(np.arange(1, n + 1) / n))
+        if total <= 0:
+            q = np.broadcast_to(path[-1], (n, path.shape[1]))
+        else:
+            u = s * total
+            i = np.minimum(np.searchsorted(cum, u, side="right") - 1, len(path) - 2)
+            w = (u - cum[i]) / np.maximum(cum[i + 1] - cum[i], 1e-12)
+            q = path[i] + w[:, None] * (path[i + 1] - path[i])
+        self._track(q)
         return T
 
     def play(self, times: np.ndarray, q: np.ndarray) -> float:
@@ -93,11 +103,8 @@ class Controller:
         times = np.asarray(times, float)
         q = np.atleast_2d(np.asarray(q, float))
         n = max(1, int(round(float(times[-1]) / self.dt)))
-        for k in range(1, n + 1):
-            t = min(k * self.dt, float(times[-1]))
-            target = np.array([np.interp(t, times, q[:, j]) for j in range(q.shape[1])])
-            self.target = np.clip(target, self.r.lower, self.r.upper)
-            self.step()
+        t = np.minimum(np.arange(1, n + 1) * self.dt, float(times[-1]))
+        self._track(np.column_stack([np.interp(t, times, q[:, j]) for j in range(q.shape[1])]))
         return float(times[-1])
 
     def move_to(self, q: np.ndarray, duration: float | None = None) -> float:
@@ -110,7 +117,7 @@ class Controller:
         ramp = max(1, n // 2)
         for k in range(1, n + 1):
             self.gripper = start + (opening - start) * float(quintic(min(1.0, k / ramp)))
-            self.step()
+            self._step()
 
     def settle(self, *, tol: float = 2e-3, vtol: float = 0.02, timeout: float = 2.0) -> bool:
         """Step until the robot is within ``tol`` of its target and slower than ``vtol``."""
@@ -119,5 +126,5 @@ class Controller:
             vel = np.abs(self.d.qvel[self.r.dofs]).max()
             if err < tol and vel < vtol:
                 return True
-            self.step()
+            self._step()
         return False
