@@ -16,7 +16,17 @@ Step kinds (``kind:`` in the file):
 ``hinge``    the arc around ``joint``: ``steps`` x ``step_deg``, orientation held or not
 ``gripper``  ``open`` / ``close``
 ``look``     render the wrist camera, find the red handle, set the ``handle`` frame
+``localize`` render ``camera`` (wrist or lift), find ``component``'s AprilTags
+             (runner/localize.py) and keep its estimated pose: from then on every
+             frame and hinge of that component is the estimate x the body's pose
+             relative to the component's root in the description
 ``wait``     ``seconds``
+
+A mockup's pose is never read from the model: a frame or hinge on a component
+(a body of the manifest's components other than the robot) before a ``localize``
+step has estimated that component fails the step. The cameras see through the
+trial's sensor noise (runner/noise.py, seeded by the facility's seed; the lights
+scaled once per trial) unless the Demo is made with ``noise=False``.
 
 Every step may give ``contacts`` (intended pairs of body-name globs), ``carried``
 (the bag is in the hand: its contacts with the environment count too) and ``settle``.
@@ -35,11 +45,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import PlanningError
-from . import ik, perception, plan
+from . import ik, localize, perception, plan
 from .control import Controller, path_duration
 from .hinge import arc, hinge_axis, turned
 from .judge import ContactJudge, stowed
 from .load import Facility
+from .noise import SensorNoise
 from .waypoints import check_names, read_waypoints
 
 
@@ -75,6 +86,9 @@ class DemoResult:
     failed_step: str | None = None
     message: str = ""
     handle: dict | None = None
+    # component -> {"position_error_m", "yaw_error_deg"}: each estimate minus the truth
+    # (for the record only: the one place the runner reads a mockup's pose)
+    localization: dict | None = None
 
     def to_json(self) -> dict:
         out = asdict(self)
@@ -87,15 +101,14 @@ def load_waypoints(path: str | Path) -> dict:
     return read_waypoints(path)
 
 
-def _frame(run: Demo, name: str) -> tuple[np.ndarray, np.ndarray]:
-    if name == "world":
-        return np.zeros(3), np.eye(3)
-    if name == "handle":
-        if run.handle is None:
-            raise StepError("no handle frame: the 'look' step has not found the strap")
-        return run.handle
-    b = run.fac.body(name)
-    return run.d.xpos[b].copy(), run.d.xmat[b].reshape(3, 3).copy()
+def _pose(pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rot, pos
+    return t
+
+
+def _yaw(rot: np.ndarray) -> float:
+    return math.atan2(float(rot[1, 0]), float(rot[0, 0]))
 
 
 def _rotation(z: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -113,7 +126,10 @@ class Demo:
         *,
         frames: Path | None = None,
         log: Callable[[str], None] = print,
+        noise: bool | SensorNoise = True,
     ) -> None:
+        """``noise``: True, the sensor noise the facility's recipe asks for (facility.json
+        ``noise``), seeded by its ``seed`` (0 without one); False, ideal sensors."""
         self.fac, self.spec = fac, spec
         self.m, self.d, self.r = fac.model, fac.data, fac.robot
         rs = spec.get("robot", {})
@@ -131,6 +147,28 @@ class Demo:
         self._planner: plan.JointPlanner | None = None
         self.last_plan: dict | None = None
         self._cams: dict[int, perception.Camera] = {}
+        if noise is True:
+            noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
+        self.noise: SensorNoise | None = noise or None
+        if self.noise is not None:
+            self.noise.light(self.m)  # this trial's lighting, once, before any rendering
+        # component -> its pose estimated from its tags (a localize step)
+        self.estimates: dict[str, localize.Estimate] = {}
+        self._component_of: dict[int, str] = {}
+        self._roots: dict[str, int] = {}
+        for comp in sorted(fac.manifest["components"]):
+            if comp == "robot":
+                continue
+            bodies = fac.component_bodies(comp)
+            for b in bodies:
+                self._component_of[b] = comp
+            roots = [b for b in sorted(bodies) if self.m.body_parentid[b] not in bodies]
+            if roots:
+                self._roots[comp] = roots[0]
+        # The description's kinematics (joints at their reference): where a component's
+        # bodies lie relative to its root is design knowledge; where the root lies is not.
+        self._design = mujoco.MjData(self.m)
+        mujoco.mj_kinematics(self.m, self._design)
         self._scene_renderer: mujoco.Renderer | None = None
         self._ik = ik.ArmIK(
             self.m,
@@ -147,8 +185,55 @@ class Demo:
         cam = self.r.cameras[role]
         if cam not in self._cams:
             size = self.spec.get("perception", {}).get("size")
-            self._cams[cam] = perception.Camera(self.m, cam, tuple(size) if size else None)
+            self._cams[cam] = perception.Camera(
+                self.m, cam, tuple(size) if size else None, noise=self.noise
+            )
         return self._cams[cam]
+
+    def in_component(self, body: int) -> np.ndarray:
+        """(4, 4) pose of ``body`` in its component's frame (its root body's), from the
+        description: the two bodies' poses with every joint at its reference."""
+        root = self._roots[self._component_of[body]]
+        d = self._design
+        t_root = _pose(d.xpos[root], d.xmat[root].reshape(3, 3))
+        return np.linalg.inv(t_root) @ _pose(d.xpos[body], d.xmat[body].reshape(3, 3))
+
+    def body_pose(self, body: int) -> np.ndarray:
+        """(4, 4) world pose of ``body`` as the robot knows it: a body of a component is
+        the component's estimate x its design pose in the component (a StepError when
+        no localize step has estimated it: never the model's pose); the robot's own
+        bodies, and the facility's fixed structure, from the model."""
+        comp = self._component_of.get(body)
+        if comp is None:
+            return _pose(self.d.xpos[body], self.d.xmat[body].reshape(3, 3))
+        est = self.estimates.get(comp)
+        if est is None:
+            raise StepError(
+                f"'{self.m.body(body).name}' is on the {comp}, whose pose has not been "
+                f"estimated: a 'localize' step must see its tags first"
+            )
+        return est.matrix() @ self.in_component(body)
+
+    def frame(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Origin and axes of a frame of the waypoints file."""
+        if name == "world":
+            return np.zeros(3), np.eye(3)
+        if name == "handle":
+            if self.handle is None:
+                raise StepError("no handle frame: the 'look' step has not found the strap")
+            return self.handle
+        t = self.body_pose(self.fac.body(name))
+        return t[:3, 3].copy(), t[:3, :3].copy()
+
+    def localization(self) -> dict[str, dict[str, float]]:
+        """Each estimate minus the truth: the one place the runner reads a mockup's
+        pose from the model (its root body's: the component's frame), for the record."""
+        truth = {}
+        for comp in self.estimates:
+            b = self._roots[comp]
+            rot = self.d.xmat[b].reshape(3, 3)
+            truth[comp] = {"pose": {"xyz": self.d.xpos[b].tolist(), "yaw": _yaw(rot)}}
+        return localize.localization_record(self.estimates, {"components": truth})
 
     def close(self) -> None:
         for c in self._cams.values():
@@ -253,7 +338,7 @@ class Demo:
         kind = step["kind"]
         self.ctl.vmax = self.vmax * float(step.get("speed", 1.0))
         getattr(self, f"_do_{kind}")(step)
-        if step.get("settle", kind not in ("wait", "gripper", "look")):
+        if step.get("settle", kind not in ("wait", "gripper", "look", "localize")):
             self.ctl.settle(timeout=step.get("settle_timeout", 1.5))
 
     def _do_joints(self, step: dict) -> None:
@@ -267,7 +352,7 @@ class Demo:
         self.planned_move(q, step.get("carried", False))
 
     def _target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
-        origin, R0 = _frame(self, step.get("frame", "world"))
+        origin, R0 = self.frame(step.get("frame", "world"))
         pos = origin + R0 @ np.asarray(step["position"], float)
         _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
         if "orientation_xyzw" in step:
@@ -310,7 +395,8 @@ class Demo:
 
     def _do_hinge(self, step: dict) -> None:
         j = self.fac.joint(step["joint"])
-        anchor, axis = hinge_axis(self.m, self.d, j)
+        # the axis where the robot believes the hinge is (the estimate, for a mockup's)
+        anchor, axis = hinge_axis(self.m, j, self.body_pose(int(self.m.jnt_bodyid[j])))
         p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
         hold = step.get("hold_orientation", True)
         poses = arc(
@@ -381,6 +467,23 @@ class Demo:
             f"({g.segment.pixels} px)"
         )
 
+    def _do_localize(self, step: dict) -> None:
+        comp, role = step["component"], step.get("camera", "wrist")
+        found = localize.locate(self.camera(role), self.d, self.fac.manifest)
+        est = found.get(comp)
+        need = step.get("min_tags", 1)
+        if est is None or len(est.tags) < need:
+            seen = sorted(t for e in found.values() for t in e.tags)
+            raise StepError(
+                f"{len(est.tags) if est else 0} tag(s) of the {comp} in the {role} camera's "
+                f"view, {need} needed (tags seen: {seen or 'none'})"
+            )
+        self.estimates[comp] = est
+        self.log(
+            f"  {comp} at {np.round(est.position, 4).tolist()} yaw "
+            f"{math.degrees(est.yaw):.2f} deg (tags {list(est.tags)})"
+        )
+
     # ------------------------------------------------------------ run
     def run(self) -> DemoResult:
         t0 = time.perf_counter()
@@ -442,6 +545,7 @@ class Demo:
             failed,
             message,
             self.handle_info,
+            self.localization() if self.estimates else None,
         )
 
     def _check(self, check: dict) -> str:
@@ -467,13 +571,16 @@ def run_demo(
     *,
     frames: Path | None = None,
     log: Callable[[str], None] = print,
+    noise: bool = True,
 ) -> DemoResult:
+    """The demo of ``waypoints`` on the facility at ``scene``; ``noise``: the recipe's
+    sensor noise (False: ideal sensors)."""
     from .load import load
 
     spec = load_waypoints(waypoints)
     fac = load(scene)
     check_names(spec, Path(waypoints), fac)
-    demo = Demo(fac, spec, frames=frames, log=log)
+    demo = Demo(fac, spec, frames=frames, log=log, noise=noise)
     try:
         return demo.run()
     finally:

@@ -1,7 +1,10 @@
-"""An arc of tool poses around a hinge joint, from the hinge's pose in the loaded model.
+"""An arc of tool poses around a hinge joint, about the axis where the robot believes it is.
 
-The axis comes from the model (``xanchor``, ``xaxis`` after ``mj_forward``),
-so a moved or jittered mockup moves the arc with it. The tool position is
+The axis is the joint's anchor and direction in its body (the description:
+``jnt_pos``, ``jnt_axis``) carried into the world by the body's pose as the caller
+knows it: for a mockup, the pose estimated from its tags (runner/demo.py), never
+its pose in the simulated model. Both are unchanged by the joint's own angle, so
+the lid's pose in the description (shut) serves at any opening. The tool position is
 rotated about the axis by each step's angle; its orientation is either held
 (as the real demo does) or rotated with the lid.
 """
@@ -15,11 +18,16 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 
-def hinge_axis(m: mujoco.MjModel, d: mujoco.MjData, joint: int) -> tuple[np.ndarray, np.ndarray]:
-    """A point on the hinge's axis and its unit direction, in the world."""
+def hinge_axis(
+    m: mujoco.MjModel, joint: int, body_pose: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """A point on the hinge's axis and its unit direction, in the world, for the joint's
+    body at ``body_pose`` ((4, 4) in the world)."""
     if m.jnt_type[joint] != mujoco.mjtJoint.mjJNT_HINGE:
         raise ValueError(f"joint '{m.joint(joint).name}' is not a hinge")
-    return d.xanchor[joint].copy(), d.xaxis[joint] / np.linalg.norm(d.xaxis[joint])
+    t = np.asarray(body_pose, float)
+    axis = t[:3, :3] @ m.jnt_axis[joint]
+    return t[:3, :3] @ m.jnt_pos[joint] + t[:3, 3], axis / np.linalg.norm(axis)
 
 
 def arc(

@@ -174,6 +174,7 @@ KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
     ),
     "gripper": ({"action": action, "seconds": nonnegative}, ("action",)),
     "look": ({"camera": name, "min_pixels": count, "border_px": count}, ()),
+    "localize": ({"component": name, "camera": name, "min_tags": count}, ("component",)),
     "wait": ({"seconds": nonnegative}, ("seconds",)),
 }
 TOP: dict[str, Check] = {
@@ -280,6 +281,11 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
             roles = ", ".join(robot.sites)
             raise w.fail(f"{at}.site", f"'{step['site']}' is not a site role; roles: {roles}")
         camera = step.get("camera", "wrist")
-        if step["kind"] == "look" and camera not in robot.cameras:
+        if step["kind"] == "localize":
+            comps = sorted(c for c in fac.manifest["components"] if c != "robot")
+            if step["component"] not in comps:
+                message = f"'{step['component']}' is not a component; components: "
+                raise w.fail(f"{at}.component", message + ", ".join(comps))
+        if step["kind"] in ("look", "localize") and camera not in robot.cameras:
             roles = ", ".join(robot.cameras)
             raise w.fail(f"{at}.camera", f"'{camera}' is not a camera role; roles: {roles}")
