@@ -52,7 +52,7 @@ def test_depth_error_on_a_flat_wall_follows_intels_rms_formula(
     assert clean == pytest.approx(distance, abs=1e-4)  # the camera faces the wall squarely
     # Intel: RMS = z^2 * subpixel / (focal * baseline), focal of the 640 x 480 camera.
     focal = 240 / math.tan(math.radians(29))
-    expected = distance**2 * 0.08 / (focal * 0.050)
+    expected = distance**2 * config["depth"]["subpixel"] / (focal * 0.050)
     measured = float(np.std(depth.astype(np.float64) - distance))
     assert measured == pytest.approx(expected, rel=0.10)
     assert float(np.mean(depth) - distance) == pytest.approx(0, abs=expected / 50)
@@ -62,9 +62,9 @@ def test_depth_error_grows_with_the_square_of_range(config: dict) -> None:
     noise = SensorNoise(config, seed=1, fovy_deg=58.0)
     near, far = (float(noise.depth_std(z, 480)) for z in (1.0, 2.0))
     assert far == pytest.approx(4 * near)
-    # At 2 m: 0.74 % of the range with the D435's 50 mm baseline and subpixel 0.08,
-    # inside the D435 datasheet's bound of 2 % at 2 m.
-    assert 0.005 < far / 2.0 < 0.02
+    # The D435 datasheet's bound, 2 % RMS at 2 m, with its 50 mm baseline and the
+    # 433 px focal length of the 640 x 480 camera: the default subpixel 0.2165.
+    assert far / 2.0 == pytest.approx(0.02, rel=1e-3)
 
 
 def test_image_noise_has_the_configured_gain_shot_and_read_noise(config: dict) -> None:

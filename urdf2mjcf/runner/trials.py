@@ -1,6 +1,6 @@
 """Seeded trials: each rebuilds the facility with ``build_facility(..., seed=...)``
 (the recipe's jitter moves the CTB within 5 cm / 15 deg and the mockups within
-2 cm / 1 deg) into a temporary folder of its worker and runs the demo there.
+2 cm / 2 deg, found by their tags) into a temporary folder of its worker and runs the demo there.
 
 Trials run on an executor (:mod:`.executors`: the local process pool or a Ray
 cluster), one job per seed. A trial depends only on its seed and its inputs,
