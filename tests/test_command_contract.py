@@ -323,8 +323,8 @@ WAYPOINT_CASES = {
     "unknown_kind": (_set_step("demo_home", "kind", "teleport"), ("'demo_home'.kind", "teleport")),
     "missing_kind": (_set_step("init", "kind", delete=True), ("steps[1] 'init'.kind", "required")),
     "missing_position": (
-        _set_step("approach_bench_seat", "position", delete=True),
-        ("'approach_bench_seat'.position", "required"),
+        _set_step("pre_drop", "position", delete=True),
+        ("'pre_drop'.position", "required"),
     ),
     "missing_bag": (_edit(lambda s: s.pop("bag")), ("bag", "required")),
     "q_wrong_type": (_set_step("init", "q", "high"), ("'init'.q", "numbers")),
@@ -333,8 +333,8 @@ WAYPOINT_CASES = {
     "steps_wrong_type": (_edit(lambda s: s.update(steps=5)), ("steps", "list of steps")),
     "unknown_step_key": (_set_step("init", "velocity", 1), ("'init'.velocity", "unknown key")),
     "unknown_frame": (
-        _set_step("approach_bench_seat", "frame", "nowhere"),
-        ("'approach_bench_seat'.frame", "no body named 'nowhere'"),
+        _set_step("under_handle", "frame", "nowhere"),
+        ("'under_handle'.frame", "no body named 'nowhere'"),
     ),
     "unknown_joint": (
         _set_step("rail_to_0.5", "set", {"no_such_joint": 0.5}),
