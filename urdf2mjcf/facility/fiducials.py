@@ -3,11 +3,11 @@
 The real facility's mockups carry AprilTag (family 36h11) markers for the robot to
 localize them by; a component declares its own in the component table::
 
-    trainer:
-      asset: stowage_unit
+    crate:
+      asset: crate
       ...
       fiducials:
-        - {id: 0, link: bench_front, xyz: [0.002, 0.3, 0.3], rpy: [1.5708, 0, 1.5708], size: 0.1}
+        - {id: 0, link: lid, xyz: [0.002, 0.3, 0.3], rpy: [1.5708, 0, 1.5708], size: 0.1}
 
 ``link`` is the component's link without its prefix; ``xyz`` / ``rpy`` (m, rad) give
 the tag's frame in that link: the origin at the centre of the printed face, z out of
@@ -87,7 +87,7 @@ def _vector(value: Any, src: Source, key: str) -> tuple[float, float, float]:
 
 def parse_fiducials(value: Any, src: Source, where: str) -> tuple[Fiducial, ...]:
     """A component's ``fiducials`` list, checked: every error names the file, the key
-    (``trainer.fiducials[1].size``) and its line."""
+    (``crate.fiducials[1].size``) and its line."""
     if value is None:
         return ()
     if not isinstance(value, list):
