@@ -90,3 +90,16 @@ def test_the_layering_check_catches_an_upward_import(tmp_path):
     targets = _imports("urdf2mjcf.passes.bad", fake)
     assert targets == {"urdf2mjcf.api"}
     assert LAYERS.index(_layer("urdf2mjcf.api")) > LAYERS.index(_layer("urdf2mjcf.passes.bad"))
+
+
+def test_the_generic_facility_builder_names_none_of_our_components():
+    """The builder knows components only from the recipe's component table: a user's own
+    facility needs no change to urdf2mjcf/facility/ (issue 10's check, as a test)."""
+    ours = re.compile(r"ctb|trainer|imetro|hatch", re.IGNORECASE)
+    hits = [
+        f"{path.relative_to(ROOT)}:{n}: {line.strip()}"
+        for path in sorted((ROOT / "urdf2mjcf" / "facility").glob("*.py"))
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if ours.search(line)
+    ]
+    assert hits == []
