@@ -3,6 +3,9 @@
 Step kinds (``kind:`` in the file):
 
 ``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value};
+             with ``relative_to`` (a component the file's ``nominal`` places: where it
+             stood when the pose was taught) the grasp site's pose at those joints is
+             carried along with the component's estimated pose (IK from them); all
              planned collision-free (runner/plan.py: OMPL's RRT* with MuJoCo as the
              collision checker, TOPP-RA timing), as the paper's MoveIt stack did; a
              carried bag moves with the hand and may touch only it
@@ -10,6 +13,7 @@ Step kinds (``kind:`` in the file):
              ``orientation_xyzw``, a quaternion x, y, z, w) given in ``frame`` (``world``,
              a body of the model, or ``handle``: the perceived strap); ``site`` names
              another of the robot's sites (``tool``: tool0, as published poses give it);
+             ``relative_to``: as for ``joints``, a world pose carried along;
              a straight Cartesian line through dense IK, or with ``joint_space`` the
              IK solution reached by a planned joint move
 ``relative`` a straight move by ``tool`` (tool-frame offset) or ``world`` offset
@@ -267,7 +271,11 @@ class Demo:
         if not res.ok:
             # near a joint limit the damping and posture tasks slow the last 0.1 mm down:
             # go on from where it stopped
-            res = self._ik.solve(self.d, pos, rot, q0=res.q, max_iter=1000)
+            # (at the edge of the reach, stretched out, it creeps: within a millimetre and
+            # half a degree is what the servos hold anyway, and the bin has centimetres)
+            res = self._ik.solve(
+                self.d, pos, rot, q0=res.q, max_iter=1000, tol_pos=1e-3, tol_rot=0.009
+            )
         if not res.ok:
             raise StepError(
                 f"no IK solution for the {self.m.site(self.site).name} pose at "
@@ -349,7 +357,30 @@ class Demo:
             q[2:] = step["arm"]
         for name, value in step.get("set", {}).items():
             q[self.r.joint_names.index(name)] = value
+        if "relative_to" in step:
+            q = self._carried_along(q, step["relative_to"])
         self.planned_move(q, step.get("carried", False))
+
+    def _moved(self, comp: str) -> np.ndarray:
+        """(4, 4) how far ``comp`` stands from where the file's ``nominal`` placed it
+        when its poses were taught: its estimated pose x the nominal one's inverse."""
+        est = self.estimates.get(comp)
+        if est is None:
+            raise StepError(
+                f"the pose was taught relative to the {comp}, whose pose has not been "
+                f"estimated: a 'localize' step must see its tags first"
+            )
+        nominal = self.spec["nominal"][comp]
+        c, s = math.cos(nominal["yaw"]), math.sin(nominal["yaw"])
+        yaw = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return est.matrix() @ np.linalg.inv(_pose(np.asarray(nominal["xyz"], float), yaw))
+
+    def _carried_along(self, q: np.ndarray, comp: str) -> np.ndarray:
+        """The joints that put the grasp site where ``q`` put it when ``comp`` stood at
+        its nominal place, now that it stands where its estimate says."""
+        moved = self._moved(comp)
+        p, R = ik.site_pose(self.m, self.d, self.site, q, self.r.qpos)
+        return self.ik(moved[:3, :3] @ p + moved[:3, 3], moved[:3, :3] @ R, q0=q)
 
     def _target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
         origin, R0 = self.frame(step.get("frame", "world"))
@@ -363,6 +394,9 @@ class Demo:
                 R = R @ np.diag([-1.0, -1.0, 1.0])
         else:
             R = Rcur
+        if "relative_to" in step:  # a world pose taught with the mockup at its nominal place
+            moved = self._moved(step["relative_to"])
+            pos, R = moved[:3, :3] @ pos + moved[:3, 3], moved[:3, :3] @ R
         if "site" in step:
             # a pose of another site, rigid with the grasp site: the grasp site's pose
             # that puts it there

@@ -111,6 +111,13 @@ def _joint_above(value: Any, where: str, w: Waypoints) -> None:
     _number(value[1], f"{where}[1]", w)
 
 
+def placements(value: Any, where: str, w: Waypoints) -> None:
+    if not isinstance(value, Mapping) or not value:
+        raise w.fail(where, "needs a mapping of component to {xyz, yaw}")
+    for comp, pose in value.items():
+        _mapping(pose, f"{where}.{comp}", w, {"xyz": numbers(3), "yaw": number}, ("xyz", "yaw"))
+
+
 def section(keys: dict[str, Check], required: tuple[str, ...] = ()) -> Check:
     def check(value: Any, where: str, w: Waypoints) -> None:
         _mapping(value, where, w, keys, required)
@@ -146,7 +153,9 @@ COMMON: dict[str, Check] = {
     "duration": positive,
 }
 KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
-    "joints": ({"q": numbers(), "arm": numbers(), "set": joint_values}, ()),
+    "joints": (
+        {"q": numbers(), "arm": numbers(), "set": joint_values, "relative_to": name}, ()
+    ),
     "pose": (
         {
             "position": numbers(3),
@@ -158,6 +167,7 @@ KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
             "site": name,
             "joint_space": flag,
             "seed": numbers(),
+            "relative_to": name,
         },
         ("position",),
     ),
@@ -186,6 +196,7 @@ TOP: dict[str, Check] = {
         {"lookat": numbers(3), "distance": positive, "azimuth": number, "elevation": number}
     ),
     "final_wait": nonnegative,
+    "nominal": placements,
     "contacts": pairs,
     "steps": lambda v, where, w: None,  # checked step by step below
 }
@@ -281,6 +292,9 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
             roles = ", ".join(robot.sites)
             raise w.fail(f"{at}.site", f"'{step['site']}' is not a site role; roles: {roles}")
         camera = step.get("camera", "wrist")
+        if "relative_to" in step and step["relative_to"] not in spec.get("nominal", {}):
+            message = f"'{step['relative_to']}' has no nominal placement (top-level 'nominal')"
+            raise w.fail(f"{at}.relative_to", message)
         if step["kind"] == "localize":
             comps = sorted(c for c in fac.manifest["components"] if c != "robot")
             if step["component"] not in comps:
