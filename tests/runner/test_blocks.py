@@ -99,7 +99,13 @@ def test_hinge_arc_lies_on_the_circle_at_the_right_angles(hold):
     m = mujoco.MjModel.from_xml_string(HINGE)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    anchor, axis = hinge_axis(m, d, m.joint("lid").id)
+    j = m.joint("lid").id
+    body = m.jnt_bodyid[j]
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = d.xmat[body].reshape(3, 3), d.xpos[body]
+    anchor, axis = hinge_axis(m, j, pose)
+    # MuJoCo's own world anchor and axis of the joint for the body at that pose
+    assert np.allclose(anchor, d.xanchor[j]) and np.allclose(axis, d.xaxis[j])
     R0 = d.xmat[m.body("box").id].reshape(3, 3)
     assert np.allclose(axis, R0 @ [0, -1, 0]) and np.allclose(
         anchor, [0.3, -0.2, 0.5] + R0 @ [0.1, 0, 0.2]
