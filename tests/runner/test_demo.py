@@ -256,3 +256,19 @@ def test_carrying_the_bag_along_the_floor_is_refused_by_the_planner(facility):
     assert "no collision-free joint move" in res.message
     assert "'floor'" in res.message and "'ctb'" in res.message
     assert np.isfinite(res.sim_time)
+
+
+def test_a_localize_step_or_relative_to_naming_what_is_not_there_is_refused(facility):
+    from urdf2mjcf.errors import FacilityError
+    from urdf2mjcf.runner.waypoints import check_names
+
+    fac = load(facility)
+    spec = load_waypoints(WAYPOINTS)
+    step = next(s for s in spec["steps"] if s["kind"] == "localize")
+    step["component"] = "trainr"
+    with pytest.raises(FacilityError, match=r"component: 'trainr' is not a component; comp"):
+        check_names(spec, WAYPOINTS, fac)
+    spec = load_waypoints(WAYPOINTS)
+    del spec["nominal"]
+    with pytest.raises(FacilityError, match="'trainer' has no nominal placement"):
+        check_names(spec, WAYPOINTS, fac)
