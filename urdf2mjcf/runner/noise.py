@@ -12,7 +12,8 @@ Models (sources in docs/facility.md, "Sensor noise"):
 
 * depth: Gaussian per pixel with the RMS error of a stereo camera,
   ``sigma(z) = z**2 * subpixel / (focal_px * baseline)`` (Intel's RealSense D400
-  formula; the D435's baseline 50 mm and subpixel 0.08);
+  formula; the D435's baseline 50 mm, and by default subpixel 0.2165: its datasheet's
+  2 % RMS at 2 m with the 433 px focal length);
 * image: exposure gain (per seed), then shot noise (variance ``shot_gain * signal``,
   DN^2) and read noise (``read_std`` DN), rounded and clipped to 0..255;
 * lighting: every light's diffuse and ambient intensity and the headlight's scaled
