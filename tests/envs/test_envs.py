@@ -219,7 +219,10 @@ def test_reset_never_builds_and_a_build_happens_once_per_inputs(built, tmp_path)
 
 @pytest.mark.parametrize("eid", IDS)
 def test_render_and_camera_depth_agree_with_mujoco_ray_casting(built, gl_context, eid):
-    env = _make(eid, render_mode="rgb_array", camera_obs=True, camera_size=SMALL)
+    # ideal sensors here: the depth noise (2 % at 2 m) is checked in tests/runner/test_noise.py
+    env = _make(
+        eid, render_mode="rgb_array", camera_obs=True, camera_size=SMALL, sensor_noise=False
+    )
     obs, _ = env.reset(seed=5)
     frame = env.render()
     assert frame.shape == (360, 480, 3) and frame.dtype == np.uint8
@@ -248,6 +251,32 @@ def test_render_and_camera_depth_agree_with_mujoco_ray_casting(built, gl_context
     close = np.abs(obs["depth"][seen] - rays[seen]) < 0.01 * rays[seen] + 0.005
     assert close.mean() > 0.95  # all but pixels on the silhouettes of things
     env.close()
+
+
+def test_force_torque_carries_the_recipes_noise_seeded_by_the_reset(built):
+    """The observed wrench is the sensor's reading plus this reset's bias and white
+    noise (runner/noise.py's model, from facility.json's ``noise``): the same seed gives
+    the same readings, another seed another bias; without noise it is the reading."""
+    from urdf2mjcf.runner.noise import SensorNoise
+
+    env = _make("IMetro-v0")
+    u = env.unwrapped
+    obs, info = env.reset(seed=3)
+    reading = u.data.sensordata[u._ft].reshape(2, 3)
+    expected = SensorNoise.from_manifest(u.manifest, info["jitter_seed"]).wrench(*reading)
+    np.testing.assert_allclose(obs["force_torque"], np.concatenate(expected), atol=1e-12)
+    bias = np.r_[u.noise.force_bias, u.noise.torque_bias]
+    assert np.linalg.norm(bias[:3]) > 0 and np.linalg.norm(bias[3:]) > 0
+    again, _ = env.reset(seed=3)
+    np.testing.assert_array_equal(again["force_torque"], obs["force_torque"])
+    env.reset(seed=4)
+    assert not np.allclose(np.r_[u.noise.force_bias, u.noise.torque_bias], bias)
+    ideal = _make("IMetro-v0", sensor_noise=False)
+    obs, _ = ideal.reset(seed=3)
+    v = ideal.unwrapped
+    np.testing.assert_array_equal(obs["force_torque"], v.data.sensordata[v._ft])
+    env.close()
+    ideal.close()
 
 
 def test_imetro_reward_is_minus_the_grasp_site_distance_to_the_red_strap(built):

@@ -21,6 +21,7 @@ from gymnasium import spaces
 
 from ..errors import InputError
 from ..facility.recipe import JITTER_KEYS, Ranges, Recipe
+from ..runner.noise import SensorNoise
 from .build import facility_folder, resolve_recipe
 from .poses import Poses
 
@@ -80,10 +81,13 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         render_size: tuple[int, int] = (480, 360),
         render_camera: str | None = None,
         jitter: Mapping[str, Any] | None = None,
+        sensor_noise: bool = True,
     ):
         """``recipe``: a recipe file or name (``imetro``); ``facility``: a folder built
         earlier by make-facility to use instead of the cached build of the recipe;
-        ``jitter``: component -> {position, yaw} ranges (m, rad) replacing the recipe's."""
+        ``jitter``: component -> {position, yaw} ranges (m, rad) replacing the recipe's;
+        ``sensor_noise``: the recipe's sensor noise (facility.json ``noise``) on the
+        force-torque and camera observations, seeded by each reset's jitter seed."""
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             valid = ", ".join(self.metadata["render_modes"])
             raise InputError(f"'{render_mode}' is not one of {valid}", element="render_mode")
@@ -143,6 +147,8 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         )
         self._renderers: dict[str, mujoco.Renderer] = {}
         self.jitter_seed: int | None = None
+        self.sensor_noise = sensor_noise
+        self.noise = self._noise(None)
 
     # -- what a subclass provides -------------------------------------------------
 
@@ -198,6 +204,7 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         given = (options or {}).get("jitter_seed")
         self.jitter_seed = int(given) if given is not None else drawn
         offsets = self.poses.apply(m, d, self.jitter_seed)
+        self.noise = self._noise(self.jitter_seed)
         mujoco.mj_forward(m, d)
         self.task_reset()
         return self._obs(), {"jitter_seed": self.jitter_seed, "offsets": offsets}
@@ -238,6 +245,10 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
 
     # -- helpers --------------------------------------------------------------------
 
+    def _noise(self, seed: int | None) -> SensorNoise:
+        """The recipe's sensor noise for ``seed`` (none with ``sensor_noise=False``)."""
+        return SensorNoise.from_manifest(self.manifest if self.sensor_noise else {}, seed)
+
     def _camera_id(self, role: str, what: str) -> int:
         """A camera by its role (``wrist``) or its model name."""
         cams = self.cameras()
@@ -275,12 +286,14 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
             w, h = self._camera_size
             r = self._renderer("camera", w, h)
             r.update_scene(self.data, camera=self.camera_id)
-            obs["rgb"] = r.render()
+            obs["rgb"] = self.noise.rgb(r.render())
             r.enable_depth_rendering()
             try:
                 depth = r.render()
             finally:
                 r.disable_depth_rendering()
+            fovy = float(self.model.cam_fovy[self.camera_id])
+            depth = self.noise.depth(depth, fovy)
             obs["depth"] = np.clip(depth, 0.0, self._far).astype(np.float32)
         return obs
 

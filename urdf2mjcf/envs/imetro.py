@@ -96,7 +96,9 @@ class IMetroEnv(FacilityEnv):
         return {
             "qpos": d.qpos[self._qpos].copy(),
             "qvel": d.qvel[self._qvel].copy(),
-            "force_torque": d.sensordata[self._ft].copy(),
+            "force_torque": np.concatenate(
+                self.noise.wrench(*d.sensordata[self._ft].reshape(2, 3))
+            ),
         }
 
     def cameras(self) -> Mapping[str, str]:
