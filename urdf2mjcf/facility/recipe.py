@@ -11,7 +11,7 @@ A recipe is a YAML file (see ``recipes/`` and docs/facility.md)::
       shelf: {xyz: [1.5, -0.5, 0], yaw: 0.5}
       box: {xyz: [0.8, 0.8, 0.1], yaw: 1.57}
     jitter:                           # uniform +- ranges, applied with --seed
-      default: {position: 0.02, yaw: 0.0175}   # m, rad: every placed component
+      default: {position: 0.02, yaw: 0.0349}   # m, rad: every placed component
       box: {position: 0.05, yaw: 0.26}         # its own ranges
       arm: false                               # never moves (the reference)
     simulation: {timestep: 0.002, integrator: implicitfast, solver: Newton}
