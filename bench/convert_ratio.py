@@ -32,9 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
-import re
 import statistics
 import subprocess
 import sys
@@ -44,6 +41,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench.machine import describe as machine  # noqa: E402
+from bench.machine import line as machine_line  # noqa: E402
 
 HISTORY_COLUMN = "warm conversion / native load"
 
@@ -154,30 +153,6 @@ def run_worker(kind: str, files: list[Path], tmp: Path, **paths: Path) -> dict:
 
 
 # -- the report -----------------------------------------------------------------------
-
-
-def machine() -> dict[str, str]:
-    import mujoco
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        names = re.findall(r"model name\s*:\s*(.+)", Path("/proc/cpuinfo").read_text())
-        cpu = names[0].strip() if names else cpu
-    except OSError:
-        pass
-    load = f"{os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else "-"
-    return {
-        "platform": platform.platform(),
-        "cpu": cpu,
-        "cores": str(os.cpu_count()),
-        "load": load,
-        "python": platform.python_version(),
-        "mujoco": mujoco.__version__,
-    }
-
-
-def machine_line(m: dict[str, str]) -> str:
-    return f"{m['cpu']}, {m['cores']} CPUs, load {m['load']}, Python {m['python']}, MuJoCo {m['mujoco']}"
 
 
 def summed(run: dict, names: list[str]) -> float:

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import re
 import statistics
 import subprocess
@@ -34,6 +33,8 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+from bench.machine import line as machine  # noqa: E402  (the one-line description)
+
 DOCS = ROOT / "docs" / "benchmarks.md"
 
 HISTORY = "facility-history"
@@ -120,22 +121,6 @@ def profile(m, steps: int = 3000) -> dict[str, float]:
     out["contacts"] = d.ncon
     out["geoms"], out["bodies"] = m.ngeom, m.nbody
     return out
-
-
-def machine() -> str:
-    import mujoco
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        names = re.findall(r"model name\s*:\s*(.+)", Path("/proc/cpuinfo").read_text())
-        cpu = names[0].strip() if names else cpu
-    except OSError:
-        pass
-    load = f", load {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
-    return (
-        f"{cpu}, {os.cpu_count()} CPUs{load}, Python {platform.python_version()}, "
-        f"MuJoCo {mujoco.__version__}"
-    )
 
 
 def commit() -> str:
