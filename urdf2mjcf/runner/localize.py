@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from .perception import pinhole_focal
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -49,7 +51,7 @@ class CameraModel:
     @property
     def focal(self) -> float:
         """Focal length in pixels (fx = fy)."""
-        return (self.height / 2) / math.tan(math.radians(self.fovy_deg) / 2)
+        return pinhole_focal(self.height, self.fovy_deg)
 
     def matrix(self) -> np.ndarray:
         """(3, 3) OpenCV camera matrix."""

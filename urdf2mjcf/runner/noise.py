@@ -24,7 +24,6 @@ Models (sources in docs/facility.md, "Sensor noise"):
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -89,7 +88,9 @@ class SensorNoise:
         fovy = fovy_deg if fovy_deg is not None else self.fovy_deg
         if fovy is None:
             raise ValueError("depth noise needs a focal length: give fovy_deg or focal_px")
-        return (height / 2) / math.tan(math.radians(fovy) / 2)
+        from .perception import pinhole_focal  # perception imports this module
+
+        return pinhole_focal(height, fovy)
 
     def depth_std(self, z: np.ndarray | float, height: int, fovy_deg: float | None = None) -> Any:
         """The configured RMS depth error (m) at depth ``z`` (0 when depth noise is off)."""

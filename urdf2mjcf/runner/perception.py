@@ -66,8 +66,14 @@ def segment(mask: np.ndarray, min_pixels: int = 50) -> Segment | None:
     return Segment(mask, len(us), c, axis, angle, length, width, length / max(width, 1.0))
 
 
+def pinhole_focal(height: int, fovy_deg: float) -> float:
+    """Focal length (pixels, fx = fy) of a MuJoCo camera's image of ``height`` rows:
+    MuJoCo renders a pinhole with square pixels and vertical field of view ``fovy``."""
+    return (height / 2) / math.tan(math.radians(fovy_deg) / 2)
+
+
 def focal(m: mujoco.MjModel, cam: int, height: int) -> float:
-    return (height / 2) / math.tan(math.radians(m.cam_fovy[cam]) / 2)
+    return pinhole_focal(height, float(m.cam_fovy[cam]))
 
 
 def backproject(

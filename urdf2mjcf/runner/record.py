@@ -44,6 +44,7 @@ import numpy as np
 
 from ..errors import OutputError
 from .load import Facility, LoadError, lookup
+from .perception import pinhole_focal
 
 if TYPE_CHECKING:
     from .perception import Camera
@@ -327,7 +328,7 @@ def camera_info(m: mujoco.MjModel, cam: int, height: int, width: int) -> dict:
     """Pinhole intrinsics of a MuJoCo camera from its fovy, square pixels, the principal
     point at the image centre in ROS pixel coordinates (pixel centres on integers: (w-1)/2);
     no distortion (plumb_bob zeros)."""
-    f = (height / 2) / math.tan(math.radians(float(m.cam_fovy[cam])) / 2)
+    f = pinhole_focal(height, float(m.cam_fovy[cam]))
     cx, cy = (width - 1) / 2, (height - 1) / 2
     return {
         "height": height,
