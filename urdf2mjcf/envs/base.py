@@ -22,6 +22,7 @@ from gymnasium import spaces
 from ..errors import InputError
 from ..facility.recipe import JITTER_KEYS, Ranges, Recipe
 from ..runner.noise import SensorNoise
+from ..runner.perception import render_rgbd
 from .build import facility_folder, resolve_recipe
 from .poses import Poses
 
@@ -285,15 +286,8 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         if self.camera_obs:
             w, h = self._camera_size
             r = self._renderer("camera", w, h)
-            r.update_scene(self.data, camera=self.camera_id)
-            obs["rgb"] = self.noise.rgb(r.render())
-            r.enable_depth_rendering()
-            try:
-                depth = r.render()
-            finally:
-                r.disable_depth_rendering()
-            fovy = float(self.model.cam_fovy[self.camera_id])
-            depth = self.noise.depth(depth, fovy)
+            rgb, depth = render_rgbd(r, self.model, self.data, self.camera_id, self.noise)
+            obs["rgb"] = rgb
             obs["depth"] = np.clip(depth, 0.0, self._far).astype(np.float32)
         return obs
 

@@ -93,6 +93,29 @@ def backproject(
     return d.cam_xpos[cam] + d.cam_xmat[cam].reshape(3, 3) @ p_cam
 
 
+def render_rgbd(
+    r: mujoco.Renderer,
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    cam: int,
+    noise: SensorNoise | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """RGB (uint8) and depth (m along the optical axis) of camera ``cam`` at the
+    renderer's size; with ``noise``, as the real sensor reads them."""
+    r.disable_depth_rendering()
+    r.update_scene(d, camera=cam)
+    rgb = r.render().copy()
+    r.enable_depth_rendering()
+    try:
+        r.update_scene(d, camera=cam)
+        depth = r.render().copy()
+    finally:
+        r.disable_depth_rendering()
+    if noise is not None:
+        rgb, depth = noise.rgb(rgb), noise.depth(depth, float(m.cam_fovy[cam]))
+    return rgb, depth
+
+
 class Camera:
     """Offscreen RGB and depth of one model camera; with ``noise``, as the real sensor
     reads them (``urdf2mjcf.runner.noise``)."""
@@ -112,18 +135,7 @@ class Camera:
         self.renderer = mujoco.Renderer(m, h, w)
 
     def rgbd(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        r = self.renderer
-        r.disable_depth_rendering()
-        r.update_scene(d, camera=self.cam)
-        rgb = r.render().copy()
-        r.enable_depth_rendering()
-        r.update_scene(d, camera=self.cam)
-        depth = r.render().copy()
-        r.disable_depth_rendering()
-        if self.noise is not None:
-            fovy = float(self.m.cam_fovy[self.cam])
-            rgb, depth = self.noise.rgb(rgb), self.noise.depth(depth, fovy)
-        return rgb, depth
+        return render_rgbd(self.renderer, self.m, d, self.cam, self.noise)
 
     def close(self) -> None:
         self.renderer.close()
