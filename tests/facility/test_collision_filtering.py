@@ -232,10 +232,15 @@ def test_bag_touches_floor_bin_and_finger_pads(built):
     mujoco.mj_forward(m, d)
     bag = m.joint("ctb_joint").qposadr[0]
 
+    folded = json.loads((built["imetro"] / "facility.json").read_text()).get("folded_geoms", {})
+
+    def link(g: int) -> str:  # the link a geom was described on (static fixtures are folded)
+        return folded.get(m.geom(g).name) or m.body(m.geom_bodyid[g]).name
+
     def bodies_touching_bag() -> set[str]:
         out = set()
         for c in d.contact[: d.ncon]:
-            names = {m.body(m.geom_bodyid[g]).name for g in c.geom}
+            names = {link(g) for g in c.geom}
             if "ctb" in names:
                 out |= names - {"ctb"}
         return out

@@ -20,7 +20,7 @@ from pathlib import Path
 from .. import api
 from .. import output as out
 from ..errors import InputError
-from . import fiducials
+from . import fiducials, fold
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
 from .recipe import Component, Pose2D, Recipe, read_yaml
@@ -94,10 +94,13 @@ def build_facility(
     cache_dir: Path | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     overwrite: bool = False,
+    fold_fixtures: bool = True,
 ) -> FacilityReport:
     """Compile ``recipe`` into the folder ``output``: on success, the files of an earlier
     build there are replaced and nothing else is touched. A non-empty ``output`` without
-    our ``facility.json`` is refused unless ``overwrite``."""
+    our ``facility.json`` is refused unless ``overwrite``. ``fold_fixtures``: move static
+    fixture geoms into their weld bodies (``urdf2mjcf.facility.fold``; the same
+    contacts, a cheaper broad phase)."""
     output = Path(output)
     previous = out.check_folder(output, overwrite, MANIFEST, GENERATOR)
     root = root.resolve()
@@ -143,12 +146,15 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
+        import mujoco
+
+        compiled = report.compiled
+        if compiled is None:
+            compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
+        folded = fold.fold_fixtures(stage / "scene.xml", compiled) if fold_fixtures else {}
         tags = [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials]
         placed = fiducials.add_to_scene(stage / "scene.xml", tags, recipe=recipe.path)
-        compiled = report.compiled
-        if placed:  # the scene changed: compile what is written (validation compiled the rest)
-            import mujoco
-
+        if placed or folded:  # the scene changed: compile what is written
             compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
         data = manifest(
             stage / "scene.xml",
@@ -162,6 +168,8 @@ def build_facility(
             compiled=compiled,  # validation compiled this very scene.xml (and our tags)
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
         )
+        if folded:
+            data[fold.MANIFEST_KEY] = folded
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
         write_manifest(stage, data)

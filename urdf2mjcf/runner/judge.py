@@ -65,7 +65,7 @@ class ContactJudge:
             involved = r1 or r2 or ((g1 or g2) and self.carried)
             if not involved:
                 continue
-            n1, n2 = m.body(b1).name or "world", m.body(b2).name or "world"
+            n1, n2 = self.fac.link_of_geom(c.geom[0]), self.fac.link_of_geom(c.geom[1])
             pair = (n1, n2) if n1 <= n2 else (n2, n1)
             if self._match(n1, n2):
                 self.log.intended.add(pair)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -139,6 +140,21 @@ class Facility:
 
     def body(self, name: str) -> int:
         return lookup(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+
+    def link_of_geom(self, geom: int) -> str:
+        """The link (body name) a geom was described on: its body's, or for a static
+        fixture the build folded into its weld body, the one ``facility.json`` lists
+        under ``folded_geoms`` ("world" for the world body)."""
+        return self._geom_links[geom]
+
+    @cached_property
+    def _geom_links(self) -> list[str]:
+        m = self.model
+        folded = self.manifest.get("folded_geoms") or {}
+        return [
+            str(folded.get(m.geom(g).name) or m.body(int(m.geom_bodyid[g])).name or "world")
+            for g in range(m.ngeom)
+        ]
 
     def joint(self, name: str) -> int:
         return lookup(self.model, mujoco.mjtObj.mjOBJ_JOINT, name)

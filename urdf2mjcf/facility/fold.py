@@ -1,0 +1,159 @@
+"""Fold the facility's static fixture geoms into the body they are welded to.
+
+A mockup's static parts (a bench's panels, a frame's posts) are links joined by
+fixed joints: each becomes a body of its own, and each body with a collision
+geom costs MuJoCo's broad phase every step (it bounds the body over all its
+geoms, sorts and sweeps it), though a part welded to its neighbours can only
+ever move with them. Moving such a geom into the body it is welded to changes
+no contact: MuJoCo filters pairs by weld body, and the geom keeps its name,
+size, classes and pose in the world. The bodies stay where they were, with
+their names, frames, sites and visual geoms, so every name the runner and the
+demo files use still resolves; only a contact's body changes, and
+``facility.json`` lists each moved geom with the link it was described on
+(``"folded_geoms"``), which the runner reports instead.
+
+What moves: a named collision geom that is a fixture (its class cannot touch its
+own class: ``contype & conaffinity == 0``; the parts that collide with everything,
+the robot and the bag, never move), out of a body without joints, into the
+nearest ancestor that has a joint or stands on the world body (a component's
+root, which ``IMetro-v0`` moves). It never goes into the world body itself, never
+out of or into a body named by an ``<exclude>`` or a sensor (a touch sensor sums
+the contacts of its site's body), and never across a ``childclass``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..fmt import fmt_vec
+
+MANIFEST_KEY = "folded_geoms"
+_ORIENTATIONS = ("euler", "axisangle", "xyaxes", "zaxis", "fromto")
+
+
+def _pose(el: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """An element's pos and unit quat (w x y z), None when given any other way."""
+    if any(el.get(key) is not None for key in _ORIENTATIONS):
+        return None
+    pos = np.array([float(v) for v in el.get("pos", "0 0 0").split()])
+    quat = np.array([float(v) for v in el.get("quat", "1 0 0 0").split()])
+    return pos, quat / np.linalg.norm(quat)
+
+
+def _compose(
+    parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``child`` given in ``parent``'s frame, in the frame ``parent`` is given in."""
+    import mujoco
+
+    rotated, quat = np.zeros(3), np.zeros(4)
+    mujoco.mju_rotVecQuat(rotated, child[0], parent[1])
+    mujoco.mju_mulQuat(quat, parent[1], child[1])
+    return parent[0] + rotated, quat / np.linalg.norm(quat)
+
+
+def _pinned(m: Any) -> set[int]:
+    """Bodies whose geoms must stay: named by an exclude or by a sensor."""
+    import mujoco
+
+    obj = mujoco.mjtObj
+    out = set()
+    for signature in m.exclude_signature:
+        out |= {int(signature) >> 16, int(signature) & 0xFFFF}
+    for s in range(m.nsensor):
+        for kind, ident in (
+            (m.sensor_objtype[s], m.sensor_objid[s]),
+            (m.sensor_reftype[s], m.sensor_refid[s]),
+        ):
+            if ident < 0:
+                continue
+            if kind == obj.mjOBJ_SITE:
+                out.add(int(m.site_bodyid[ident]))
+            elif kind in (obj.mjOBJ_BODY, obj.mjOBJ_XBODY):
+                out.add(int(ident))
+            elif kind == obj.mjOBJ_GEOM:
+                out.add(int(m.geom_bodyid[ident]))
+    return out
+
+
+def _target(m: Any, body: int, pinned: set[int]) -> list[int]:
+    """The bodies from ``body`` up to where its fixtures go (last), ``[body]`` when
+    they stay."""
+    path = [body]
+    while True:
+        parent = int(m.body_parentid[path[-1]])
+        if parent == 0 or parent in pinned:
+            return path
+        path.append(parent)
+        if m.body_jntnum[parent] > 0:
+            return path
+
+
+def fold_fixtures(scene: Path, m: Any) -> dict[str, str]:
+    """Rewrite the MJCF file ``scene`` (compiled as ``m``) with its static fixture
+    geoms in their weld bodies; returns {geom: the body it was on}, in file order."""
+    from lxml import etree
+
+    from .fiducials import _indent
+
+    root = etree.fromstring(scene.read_bytes())
+    elements = {b.get("name"): b for b in root.iter("body") if b.get("name")}
+    pinned = _pinned(m)
+    folded: dict[str, str] = {}
+    for geom in list(root.iter("geom")):
+        name = geom.get("name")
+        owner = geom.getparent()
+        if not name or owner is None or owner.tag != "body":
+            continue
+        g = m.geom(name).id
+        contype, conaffinity = int(m.geom_contype[g]), int(m.geom_conaffinity[g])
+        body = int(m.geom_bodyid[g])
+        if not (contype | conaffinity) or contype & conaffinity:
+            continue  # visual, or colliding with its own kind (robot, bag)
+        if body in pinned or m.body_jntnum[body] > 0:
+            continue
+        path = _target(m, body, pinned)
+        found = [elements.get(m.body(b).name) for b in path]
+        if len(path) == 1 or any(el is None or el.get("childclass") for el in found):
+            continue
+        chain: list[Any] = found
+        if any(el.getparent() is not chain[i + 1] for i, el in enumerate(chain[:-1])):
+            continue  # a <frame> between them
+        pose = _pose(geom)
+        frames = [_pose(el) for el in chain[:-1]]
+        if pose is None or any(f is None for f in frames):
+            continue
+        for frame in frames:
+            assert frame is not None
+            pose = _compose(frame, pose)
+        geom.set("pos", fmt_vec(pose[0]))
+        if np.array_equal(pose[1], [1.0, 0.0, 0.0, 0.0]):
+            geom.attrib.pop("quat", None)
+        else:
+            geom.set("quat", fmt_vec(pose[1]))
+        target = chain[-1]
+        _remove(owner, geom)
+        _indent(target, geom, _after_geoms(target))
+        folded[name] = owner.get("name")
+    if folded:
+        scene.write_bytes(etree.tostring(root) + b"\n")
+    return folded
+
+
+def _after_geoms(body: Any) -> int:
+    """Index after the body's last geom (before its sites and child bodies)."""
+    last = max((i for i, el in enumerate(body) if el.tag in ("inertial", "geom")), default=-1)
+    return last + 1
+
+
+def _remove(parent: Any, child: Any) -> None:
+    """Remove ``child``, keeping its neighbours' indentation."""
+    i = list(parent).index(child)
+    if i > 0:
+        parent[i - 1].tail = child.tail
+    elif len(parent) > 1:
+        parent.text = child.tail
+    parent.remove(child)
