@@ -53,7 +53,15 @@ def collidable_bodies(m: mujoco.MjModel) -> set[str]:
 def test_geoms_keep_names_classes_and_world_poses(pair):
     m, ref, manifest = models(pair)
     folded = manifest["folded_geoms"]
-    assert m.ngeom == ref.ngeom and m.nbody == ref.nbody and m.nq == ref.nq
+    assert m.nbody == ref.nbody and m.nq == ref.nq
+    # fixtures that took over their visual twin: drawn in the visual group, with its material
+    merged = [
+        g
+        for g in range(m.ngeom)
+        if m.geom_group[g] == 2 and m.geom_contype[g] | m.geom_conaffinity[g]
+    ]
+    assert len(merged) == ref.ngeom - m.ngeom > 30
+    assert all(m.geom_matid[g] >= 0 for g in merged)
     assert [m.body(b).name for b in range(m.nbody)] == [ref.body(b).name for b in range(ref.nbody)]
     d, dr = mujoco.MjData(m), mujoco.MjData(ref)
     for model, data in ((m, d), (ref, dr)):
@@ -62,9 +70,10 @@ def test_geoms_keep_names_classes_and_world_poses(pair):
     named = [ref.geom(g).name for g in range(ref.ngeom) if ref.geom(g).name]
     for name in named:
         g, r = m.geom(name).id, ref.geom(name).id
-        assert (m.geom_contype[g], m.geom_conaffinity[g]) == (
+        assert (m.geom_contype[g], m.geom_conaffinity[g], m.geom_size[g].tolist()) == (
             ref.geom_contype[r],
             ref.geom_conaffinity[r],
+            ref.geom_size[r].tolist(),
         )
         np.testing.assert_allclose(d.geom_xpos[g], dr.geom_xpos[r], atol=1e-12, err_msg=name)
         np.testing.assert_allclose(d.geom_xmat[g], dr.geom_xmat[r], atol=1e-12, err_msg=name)
@@ -146,18 +155,45 @@ def test_the_runner_reports_the_link_a_geom_was_described_on(pair):
             assert fac.link_of_geom(g) == ref.body(ref.geom_bodyid[ref.geom(name).id]).name
 
 
+def test_cameras_see_the_same_pictures(pair):
+    """The merged fixtures are drawn as their visual twins were: every camera of the
+    scene and a free view over the facility give the same image (a handful of pixels
+    at coincident faces aside)."""
+    m, ref, _ = models(pair)
+    images = []
+    for model in (m, ref):
+        d = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+        mujoco.mj_forward(model, d)
+        shots = []
+        with mujoco.Renderer(model, 240, 320) as renderer:
+            free = mujoco.MjvCamera()
+            free.lookat[:], free.distance, free.azimuth, free.elevation = [0, 1, 0.8], 5, 120, -25
+            for camera in [*range(model.ncam), free]:
+                renderer.update_scene(d, camera=camera)
+                shots.append(renderer.render().astype(int))
+        images.append(shots)
+    for ours, theirs in zip(*images, strict=True):
+        differ = np.abs(ours - theirs).max(axis=2) > 0
+        assert differ.mean() < 1e-3, differ.mean()
+
+
 # ------------------------------------------------------------------ the rules, by hand
 
 SMALL = """<mujoco>
   <default>
-    <default class="collision"><geom contype="2" conaffinity="1"/></default>
+    <default class="visual"><geom contype="0" conaffinity="0" group="2"/></default>
+    <default class="collision"><geom contype="2" conaffinity="1" group="3"/></default>
   </default>
+  <asset><material name="oak" rgba="0.6 0.4 0.2 1"/></asset>
   <worldbody>
     <body name="root" pos="1 2 0" quat="0.9238795 0 0 0.3826834">
+      <geom class="visual" type="box" size="0.1 0.1 0.1" material="oak"/>
       <geom name="root_box" class="collision" type="box" size="0.1 0.1 0.1"/>
       <body name="panel" pos="0.3 0 0.2" quat="0.7071068 0.7071068 0 0">
+        <geom class="visual" type="box" size="0.2 0.1 0.05" pos="0 0.1 0" quat="0.9659258 0 0.258819 0" rgba="1 0 0 1"/>
         <geom name="panel_box" class="collision" type="box" size="0.2 0.1 0.05" pos="0 0.1 0" quat="0.9659258 0 0.258819 0"/>
-        <geom name="panel_visual" type="box" size="0.2 0.1 0.05" contype="0" conaffinity="0"/>
+        <geom class="visual" type="box" size="0.2 0.1 0.06" material="oak"/>
         <body name="post" pos="0 0.5 0">
           <geom name="post_box" class="collision" type="box" size="0.02 0.02 0.3"/>
         </body>
@@ -173,6 +209,7 @@ SMALL = """<mujoco>
         </body>
       </body>
       <body name="arm_mount" pos="0 0 0.5">
+        <geom class="visual" type="box" size="0.05 0.05 0.05"/>
         <geom name="mount_box" type="box" size="0.05 0.05 0.05"/>
       </body>
       <body name="kept" pos="0 0 -0.3">
@@ -199,16 +236,23 @@ def test_what_moves_and_where(tmp_path):
     # the handle's frame is given by euler (not composed here), the mount collides with
     # everything (contype 1 & conaffinity 1), 'kept' is named by an exclude, the root's own
     # geom is on a body standing on the world, and nothing goes into the world body
-    assert folded == {
-        "panel_box": "panel",
-        "post_box": "post",
-        "knob_box": "knob",
-    }
+    assert folded.moved == {"panel_box": "panel", "post_box": "post", "knob_box": "knob"}
+    # a fixture with a visual twin (same shape, same pose) takes over its look; the
+    # panel's other visual (another size) and the robot-like mount's twin stay
+    assert folded.merged == ["root_box", "panel_box"]
+    assert after.ngeom == before.ngeom - 2
+    root_box, panel_box = after.geom("root_box"), after.geom("panel_box")
+    assert root_box.group[0] == panel_box.group[0] == 2
+    assert after.material(root_box.matid[0]).name == "oak"
+    np.testing.assert_allclose(panel_box.rgba, [1, 0, 0, 1])
     owner = {after.geom(g).name: after.body(after.geom_bodyid[g]).name for g in range(after.ngeom)}
     assert owner["panel_box"] == owner["post_box"] == "root"
     assert owner["knob_box"] == "door"
-    for stays in ("root_box", "panel_visual", "handle_box", "mount_box", "kept_box", "probe_box"):
-        assert owner[stays] == before.body(before.geom(stays).bodyid[0]).name, stays
+    for stays in ("root_box", "handle_box", "mount_box", "kept_box", "probe_box"):
+        if stays in owner:
+            assert owner[stays] == before.body(before.geom(stays).bodyid[0]).name, stays
+    visuals = [g for g in range(after.ngeom) if not after.geom(g).name]
+    assert [after.body(after.geom_bodyid[g]).name for g in visuals] == ["panel", "arm_mount"]
     d0, d1 = mujoco.MjData(before), mujoco.MjData(after)
     for q in (0.0, 0.7, -2.0):
         for model, data in ((before, d0), (after, d1)):
@@ -216,16 +260,15 @@ def test_what_moves_and_where(tmp_path):
             mujoco.mj_kinematics(model, data)
         for g in range(before.ngeom):
             name = before.geom(g).name
-            np.testing.assert_allclose(
-                d1.geom_xpos[after.geom(name).id], d0.geom_xpos[g], atol=1e-12
-            )
-            np.testing.assert_allclose(
-                d1.geom_xmat[after.geom(name).id], d0.geom_xmat[g], atol=1e-12
-            )
+            if name:
+                h = after.geom(name).id
+                np.testing.assert_allclose(d1.geom_xpos[h], d0.geom_xpos[g], atol=1e-12)
+                np.testing.assert_allclose(d1.geom_xmat[h], d0.geom_xmat[g], atol=1e-12)
     # the file is rewritten deterministically: folding a fresh copy gives the same bytes
     again = tmp_path / "again.xml"
     again.write_text(SMALL)
     fold_fixtures(again, before)
     assert again.read_bytes() == scene.read_bytes()
     # folding what is folded moves nothing
-    assert fold_fixtures(scene, after) == {}
+    again_folded = fold_fixtures(scene, after)
+    assert again_folded.moved == {} and again_folded.merged == []

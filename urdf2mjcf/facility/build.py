@@ -151,10 +151,11 @@ def build_facility(
         compiled = report.compiled
         if compiled is None:
             compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
-        folded = fold.fold_fixtures(stage / "scene.xml", compiled) if fold_fixtures else {}
+        folded = fold.fold_fixtures(stage / "scene.xml", compiled) if fold_fixtures else None
         tags = [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials]
         placed = fiducials.add_to_scene(stage / "scene.xml", tags, recipe=recipe.path)
-        if placed or folded:  # the scene changed: compile what is written
+        changed = folded is not None and bool(folded.moved or folded.merged)
+        if placed or changed:  # the scene changed: compile what is written
             compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
         data = manifest(
             stage / "scene.xml",
@@ -168,8 +169,8 @@ def build_facility(
             compiled=compiled,  # validation compiled this very scene.xml (and our tags)
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
         )
-        if folded:
-            data[fold.MANIFEST_KEY] = folded
+        if folded is not None and folded.moved:
+            data[fold.MANIFEST_KEY] = folded.moved
         if rocks:
             data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
         write_manifest(stage, data)

@@ -23,6 +23,7 @@ the contacts of its site's body), and never across a ``childclass``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,7 @@ from ..fmt import fmt_vec
 
 MANIFEST_KEY = "folded_geoms"
 _ORIENTATIONS = ("euler", "axisangle", "xyaxes", "zaxis", "fromto")
+_SHAPE = ("type", "size", "mesh", "hfield", "pos", "quat", *_ORIENTATIONS)
 
 
 def _pose(el: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -92,9 +94,47 @@ def _target(m: Any, body: int, pinned: set[int]) -> list[int]:
             return path
 
 
-def fold_fixtures(scene: Path, m: Any) -> dict[str, str]:
+@dataclass
+class Folded:
+    moved: dict[str, str] = field(default_factory=dict)
+    """Each geom moved into its weld body -> the body (link) it was described on."""
+    merged: list[str] = field(default_factory=list)
+    """Fixtures that took over their visual twin (same shape and pose): drawn themselves."""
+
+
+def _visual_group(root: Any) -> str | None:
+    """The group of the scene's ``visual`` default class, when it says one."""
+    for default in root.iter("default"):
+        if default.get("class") == "visual":
+            geom = default.find("geom")
+            if geom is not None and geom.get("contype") == geom.get("conaffinity") == "0":
+                return geom.get("group")
+    return None
+
+
+def _twin(geom: Any, group: str | None) -> Any | None:
+    """An unnamed visual geom beside ``geom`` with the same shape and pose."""
+    if group is None:
+        return None
+    for other in geom.getparent():
+        if (
+            other.tag == "geom"
+            and other is not geom
+            and other.get("class") == "visual"
+            and other.get("name") is None
+            and not any(other.get(k) is not None for k in ("group", "contype", "conaffinity"))
+            and all(other.get(k) == geom.get(k) for k in _SHAPE)
+        ):
+            return other
+    return None
+
+
+def fold_fixtures(scene: Path, m: Any, *, merge_visuals: bool = True) -> Folded:
     """Rewrite the MJCF file ``scene`` (compiled as ``m``) with its static fixture
-    geoms in their weld bodies; returns {geom: the body it was on}, in file order."""
+    geoms in their weld bodies (file order). With ``merge_visuals``, a fixture whose
+    visual twin (an unnamed geom of the ``visual`` class with the same shape and pose
+    on the same body) exists takes over its material and group and the twin goes: one
+    geom to pose and bound instead of two, drawn the same."""
     from lxml import etree
 
     from .fiducials import _indent
@@ -102,7 +142,8 @@ def fold_fixtures(scene: Path, m: Any) -> dict[str, str]:
     root = etree.fromstring(scene.read_bytes())
     elements = {b.get("name"): b for b in root.iter("body") if b.get("name")}
     pinned = _pinned(m)
-    folded: dict[str, str] = {}
+    group = _visual_group(root) if merge_visuals else None
+    out = Folded()
     for geom in list(root.iter("geom")):
         name = geom.get("name")
         owner = geom.getparent()
@@ -113,6 +154,14 @@ def fold_fixtures(scene: Path, m: Any) -> dict[str, str]:
         body = int(m.geom_bodyid[g])
         if not (contype | conaffinity) or contype & conaffinity:
             continue  # visual, or colliding with its own kind (robot, bag)
+        twin = _twin(geom, group)
+        if twin is not None:
+            for key in ("material", "rgba"):
+                if twin.get(key) is not None:
+                    geom.set(key, twin.get(key))
+            geom.set("group", group)
+            _remove(owner, twin)
+            out.merged.append(name)
         if body in pinned or m.body_jntnum[body] > 0:
             continue
         path = _target(m, body, pinned)
@@ -137,10 +186,10 @@ def fold_fixtures(scene: Path, m: Any) -> dict[str, str]:
         target = chain[-1]
         _remove(owner, geom)
         _indent(target, geom, _after_geoms(target))
-        folded[name] = owner.get("name")
-    if folded:
+        out.moved[name] = owner.get("name")
+    if out.moved or out.merged:
         scene.write_bytes(etree.tostring(root) + b"\n")
-    return folded
+    return out
 
 
 def _after_geoms(body: Any) -> int:
