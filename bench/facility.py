@@ -6,7 +6,8 @@
     python bench/facility.py --write-docs       # also update docs/benchmarks.md (latest + history)
 
 Build: `make-facility` on recipes/imetro.yaml with an empty decomposition
-cache (cold) and again with that cache (warm). Simulation: steps per second
+cache (cold) and again with that cache (warm); once more without folding the
+fixtures (``fold_fixtures=False``), measured beside it. Simulation: steps per second
 on one core with cameras off (no rendering), from the home keyframe with the
 servos holding it, of the whole facility and of the robot compiled on its own
 (components/imetro_robot), in ``--runs`` alternating pairs; the ratio is the
@@ -179,12 +180,21 @@ def record_history(values: dict[str, object], docs: Path = DOCS) -> None:
     docs.write_text(text[: block.start()] + table + text[block.end() :])
 
 
-def measure(scene: Path, robot: Path | None, runs: int, with_profile: bool) -> dict:
+UNFOLDED = "facility, fixtures not folded"
+
+
+def measure(
+    scene: Path, robot: Path | None, runs: int, with_profile: bool, unfolded: Path | None = None
+) -> dict:
+    """``unfolded``: the same facility built with ``fold_fixtures=False``, measured in
+    the same alternation (the gain of urdf2mjcf.facility.fold)."""
     import mujoco
 
     models = {"facility": mujoco.MjModel.from_xml_path(str(scene))}
     if robot is not None:
         models["robot"] = mujoco.MjModel.from_xml_path(str(robot))
+    if unfolded is not None:
+        models[UNFOLDED] = mujoco.MjModel.from_xml_path(str(unfolded))
     if with_profile:
         models["facility, every geom colliding"] = unfiltered(scene)
     sps = alternate(models, runs)
@@ -201,6 +211,10 @@ def measure(scene: Path, robot: Path | None, runs: int, with_profile: bool) -> d
             "facility_vs_robot": round(statistics.median(ratios), 3),
             "facility_vs_robot_range": [round(min(ratios), 3), round(max(ratios), 3)],
         }
+    if unfolded is not None and robot is not None:
+        ratios = [f / r for f, r in zip(sps[UNFOLDED], sps["robot"], strict=True)]
+        out["unfolded_steps_per_s"] = round(med[UNFOLDED])
+        out["unfolded_vs_robot"] = round(statistics.median(ratios), 3)
     out["conversion_vs_native_load"] = None  # another benchmark's: see record_history
     out["runs"] = runs
     if with_profile:
@@ -248,8 +262,20 @@ def main() -> int:
             warm = time.perf_counter() - t
             counts = report.manifest["counts"]
             result |= {"cold_s": round(cold, 1), "warm_s": round(warm, 1)}
+            plain = build_facility(
+                recipe,
+                Path(tmp) / "unfolded",
+                root=ROOT,
+                cache_dir=cache,
+                components=False,
+                fold_fixtures=False,
+            )
             result |= measure(
-                report.scene, report.components.get("imetro_robot"), args.runs, args.profile
+                report.scene,
+                report.components.get("imetro_robot"),
+                args.runs,
+                args.profile,
+                unfolded=plain.scene,
             )
             result |= {"bodies": counts["bodies"], "dofs": counts["dofs"]}
     result |= {"machine": machine(), "commit": commit(), "date": time.strftime("%Y-%m-%d")}
@@ -292,6 +318,9 @@ def write_docs(result: dict, note: str) -> None:
                 result["commit"],
             ],
         )
+    if result.get("unfolded_vs_robot") is not None:
+        same_run = f"fixtures not folded, same run: {result['unfolded_vs_robot']}"
+        note = f"{note}; {same_run}" if note else same_run
     record_history(
         {
             "facility / robot steps": ratio if ratio is not None else "-",
