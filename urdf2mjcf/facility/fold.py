@@ -16,9 +16,10 @@ What moves: a named collision geom that is a fixture (its class cannot touch its
 own class: ``contype & conaffinity == 0``; the parts that collide with everything,
 the robot and the bag, never move), out of a body without joints, into the
 nearest ancestor that has a joint or stands on the world body (a component's
-root, which ``IMetro-v0`` moves). It never goes into the world body itself, never
-out of or into a body named by an ``<exclude>`` or a sensor (a touch sensor sums
-the contacts of its site's body), and never across a ``childclass``.
+root, which the Gymnasium environments move on reset). It never goes into the
+world body itself, never out of or into a body named by an ``<exclude>`` or a
+sensor (a touch sensor sums the contacts of its site's body), and never across a
+``childclass``.
 """
 
 from __future__ import annotations
