@@ -272,3 +272,15 @@ def test_a_localize_step_or_relative_to_naming_what_is_not_there_is_refused(faci
     del spec["nominal"]
     with pytest.raises(FacilityError, match="'trainer' has no nominal placement"):
         check_names(spec, WAYPOINTS, fac)
+
+
+def test_facility_demo_defaults_to_the_demo_written_for_the_facilitys_recipe():
+    """facility-demo without --waypoints: recipes/demo/<recipe name>.yaml when the
+    recipe has one (the compact layout), else the published demo."""
+    from urdf2mjcf.runner.cli import default_waypoints
+
+    demos = ROOT / "recipes" / "demo"
+    assert default_waypoints(ROOT, {"recipe": "imetro"}) == demos / "imetro.yaml"
+    assert default_waypoints(ROOT, {"recipe": "imetro-compact"}) == demos / "imetro-compact.yaml"
+    for other in ({"recipe": "imetro-two-hatches"}, {}, {"recipe": "../imetro-compact"}):
+        assert default_waypoints(ROOT, other) == WAYPOINTS, other

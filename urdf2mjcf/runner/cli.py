@@ -59,13 +59,26 @@ def _frames_folder(
         out.install_folder(stage, frames, previous, overwrite=overwrite, last=FRAMES_MANIFEST)
 
 
+def default_waypoints(root: Path, manifest: dict) -> Path:
+    """The demo written for the facility's recipe (``recipes/demo/<recipe name>.yaml``,
+    e.g. the compact layout's), else the published one (``recipes/demo/imetro.yaml``)."""
+    demos = root / "recipes" / "demo"
+    name = manifest.get("recipe")
+    if isinstance(name, str) and name and "/" not in name and "\\" not in name:
+        own = demos / f"{name}.yaml"
+        if own.is_file():
+            return own
+    return demos / "imetro.yaml"
+
+
 @click.command("facility-demo", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("scene", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--waypoints",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     default=None,
-    help="demo file (default: recipes/demo/imetro.yaml of the facility root)",
+    help="demo file (default: recipes/demo/<the facility's recipe name>.yaml of the facility "
+    "root when there is one, else recipes/demo/imetro.yaml)",
 )
 @click.option(
     "--trials",
@@ -150,7 +163,7 @@ def facility_demo_command(
     # Everything the user gave is checked before anything runs or is written.
     fac = load(scene)
     root = find_root()  # a checkout here or above, else the installed data
-    waypoints = waypoints or root / "recipes" / "demo" / "imetro.yaml"
+    waypoints = waypoints or default_waypoints(root, fac.manifest)
     spec = read_waypoints(waypoints)
     check_names(spec, waypoints, fac)
     if report:
