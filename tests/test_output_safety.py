@@ -133,6 +133,39 @@ def test_a_manifest_listing_paths_outside_the_folder_is_not_ours(tmp_path):
     assert files(out) == before and outside.read_text() == "keep"
 
 
+def test_sigterm_during_a_build_leaves_nothing_behind(tmp_path):
+    """SIGTERM (as a job scheduler or `kill` sends) while make-facility builds: exit
+    143 with one error line, and neither the output nor its hidden staging folder."""
+    import signal
+    import time
+
+    entry = ENTRY["make-facility"]
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"from urdf2mjcf.cli import {entry}; {entry}()",
+            NO_ROBOT,
+            "-o",
+            str(tmp_path / "out"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+    )
+    deadline = time.monotonic() + 120
+    while not list(tmp_path.glob(".out-*")):  # the build is under way in its staging folder
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: make-facility terminated"), err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_an_empty_folder_is_built_into(tmp_path):
     out = tmp_path / "DIR"
     out.mkdir()

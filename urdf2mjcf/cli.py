@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import logging
+import os
+import signal
 import sys
+import threading
 import traceback
 from collections.abc import Iterable
 from pathlib import Path
@@ -290,8 +293,14 @@ def run_command(
         for sub in command.commands.values():
             _add_debug_option(sub)
     debug = "--debug" in (sys.argv[1:] if args is None else args)
+    restore = _terminate_cleanly()
     try:
         command.main(args=args, prog_name=prog_name, standalone_mode=False)
+    except Terminated:  # SIGTERM: the staged output was removed on the way out
+        click.echo(
+            f"error: {command.name} terminated (SIGTERM); its unfinished output removed", err=True
+        )
+        sys.exit(128 + signal.SIGTERM)
     except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
         logging.getLogger(__name__).debug("%s failed", command.name, exc_info=True)
         if debug:
@@ -326,7 +335,34 @@ def run_command(
             err=True,
         )
         sys.exit(1)
+    finally:
+        restore()
     sys.exit(0)
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread: like Ctrl-C, it unwinds every staged
+    output folder and file (their cleanup runs on any exception), which the default
+    action (the process killed where it stands) would leave behind."""
+
+
+def _terminate_cleanly() -> Any:
+    """Turn SIGTERM into :class:`Terminated` in this process; returns the undo. Child
+    processes are spawned or exec'd (default handlers), and one forked after this
+    still dies by SIGTERM as before."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    main = os.getpid()
+
+    def handler(signum: int, frame: Any) -> None:
+        if os.getpid() != main:  # a forked child: die as SIGTERM says
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    return lambda: signal.signal(signal.SIGTERM, previous)
 
 
 def urdf2mjcf_main() -> None:
