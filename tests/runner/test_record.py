@@ -299,6 +299,57 @@ def test_facility_recording_matches_the_simulation(imetro, tmp_path, gl_context)
         assert agree >= 45, (cam_name, agree)  # of 49: a pixel on an edge may differ
 
 
+def test_a_recording_with_sensor_noise_reads_as_the_sensors_do(imetro, tmp_path, gl_context):
+    """With the facility's SensorNoise, recorded wrenches are the simulation's plus this
+    seed's bias and white noise of the configured size, and images are not the ideal
+    render; joint states stay exact."""
+    from urdf2mjcf.runner.noise import SensorNoise
+
+    fac = load(imetro)
+    m, d = fac.model, fac.data
+    ft = fac.manifest["components"]["robot"]["roles"]["force_torque"]
+    cfg = fac.manifest["noise"]["wrench"]
+    noise = SensorNoise.from_manifest(fac.manifest, 7)
+    bias = SensorNoise.from_manifest(fac.manifest, 7)  # the same seed: the same bias
+    path = tmp_path / "noisy.mcap"
+    rec = Recorder(m, d, facility_sources(fac), path, rates=Rates(images=10.0), noise=noise)
+    rec.step()
+    truth = Truth(m, d)
+    ctl = Controller(fac, np.full(len(fac.robot.joints), 1.0))
+    ctl.on_step += [rec.step, truth]
+    ctl.wait(1.0)
+    rec.close()
+    msgs = read(path)
+    f_adr = m.sensor_adr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, ft["force"])]
+    errors = []
+    for _, msg in msgs[f"/{ft['site']}/wrench"]:
+        s = truth.at[stamp_ns(msg)]["sensordata"]
+        w = msg.wrench.force
+        errors.append(np.array([w.x, w.y, w.z]) - s[f_adr : f_adr + 3])
+    errors = np.array(errors)
+    assert len(errors) == 101  # the start and 1 s at 100 Hz
+    assert np.linalg.norm(bias.force_bias) > 0.5 * cfg["force_bias"]
+    np.testing.assert_allclose(errors.mean(axis=0), bias.force_bias, atol=0.2)  # 4 sigma
+    assert 0.4 < errors.std(axis=0).mean() / cfg["force_std"] < 1.6
+    # images: the noisy camera differs from an ideal render of the same state
+    role, cam_name = next(iter(fac.manifest["components"]["robot"]["roles"]["cameras"].items()))
+    _, img = msgs[f"/{role}_camera/color/image_raw"][-1]
+    rgb = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width, 3)
+    from urdf2mjcf.runner.perception import Camera
+
+    ideal = Camera(m, m.camera(cam_name).id)
+    try:
+        clean, _ = ideal.rgbd(d)
+    finally:
+        ideal.close()
+    assert np.abs(rgb.astype(int) - clean.astype(int)).mean() > 0.5
+    # joint states: exact
+    for _, msg in msgs["/joint_states"][:5]:
+        q = truth.at[stamp_ns(msg)]["qpos"]
+        j = m.joint(msg.name[0])
+        assert msg.position[0] == q[j.qposadr[0]]
+
+
 def test_rover_recording_has_the_imu_and_the_tree(mira, tmp_path):
     sim = RoverSim(mira)
     ((name, rover),) = sim.rovers.items()

@@ -290,9 +290,15 @@ def _once(
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
     recorder = None
     if record:
+        from .noise import SensorNoise
         from .record import Recorder, facility_sources
 
-        recorder = Recorder(fac.model, fac.data, facility_sources(fac), record, generator=GENERATOR)
+        # Its own noise streams (the facility's settings and seed): recording draws
+        # nothing from the demo's, so a recorded run is the run without --record.
+        noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
+        recorder = Recorder(
+            fac.model, fac.data, facility_sources(fac), record, generator=GENERATOR, noise=noise
+        )
         recorder.step()  # the start
         demo.ctl.on_step.append(recorder.step)
     try:

@@ -23,6 +23,9 @@ MuJoCo's camera frame turned 180 deg about x. Depth follows the RealSense ROS
 driver (``realsense2_camera``): ``aligned_depth_to_color`` as 16UC1 in mm, 0
 where nothing is seen. Everything goes on ``/tf`` (none on ``/tf_static``): a
 bag played from any point, or a subscriber that joins late, has the whole tree.
+Given a ``SensorNoise`` (``facility-demo --record`` passes the facility's), images,
+depth and wrenches carry the sensor noise the run's cameras see; joint states, TF
+and IMU are exact.
 
 The writer libraries are the optional extra ``ros`` (``mcap``,
 ``mcap-ros2-support``), imported only when a recording is asked for.
@@ -47,6 +50,7 @@ from .load import Facility, LoadError, lookup
 from .perception import pinhole_focal
 
 if TYPE_CHECKING:
+    from .noise import SensorNoise
     from .perception import Camera
     from .rover.roles import Rover
 
@@ -383,14 +387,18 @@ class Recorder:
         rates: Rates | None = None,
         generator: str = "urdf2mjcf",
         metadata: Mapping[str, str] | None = None,
+        noise: SensorNoise | None = None,
     ) -> None:
+        """``noise``: images and wrenches as the real sensors read them (a
+        :class:`~urdf2mjcf.runner.noise.SensorNoise` of its own, so that recording draws
+        nothing from the run's noise); None: ideal. Joint states, TF and IMU are exact."""
         module = _writer_module()
         self.path = Path(path)
         if module is None:
             raise OutputError(
                 f"recording needs the MCAP libraries: {INSTALL}", file=self.path, element="--record"
             )
-        self.m, self.d, self.src = m, d, sources
+        self.m, self.d, self.src, self.noise = m, d, sources, noise
         self.rates = rates or Rates()
         self.counts: dict[str, int] = {}
         self._cams: dict[int, Camera] = {}
@@ -540,12 +548,12 @@ class Recorder:
     def _wrenches(self, header: dict) -> None:
         s = self.d.sensordata
         for w in self.src.wrenches:
+            force, torque = s[w.force : w.force + 3], s[w.torque : w.torque + 3]
+            if self.noise is not None:
+                force, torque = self.noise.wrench(force, torque)
             msg = {
                 "header": {"stamp": header["stamp"], "frame_id": self.site_frame(w.site)},
-                "wrench": {
-                    "force": _vec(s[w.force : w.force + 3]),
-                    "torque": _vec(s[w.torque : w.torque + 3]),
-                },
+                "wrench": {"force": _vec(force), "torque": _vec(torque)},
             }
             self._write(w.topic, "geometry_msgs/msg/WrenchStamped", msg)
 
@@ -570,7 +578,7 @@ class Recorder:
             w, h = (int(x) for x in self.m.cam_resolution[cam])
             g = self.m.vis.global_  # the offscreen buffer must hold the camera's image
             g.offwidth, g.offheight = max(g.offwidth, w), max(g.offheight, h)
-            self._cams[cam] = Camera(self.m, cam)
+            self._cams[cam] = Camera(self.m, cam, noise=self.noise)
         return self._cams[cam]
 
     def _images(self, header: dict) -> None:
