@@ -27,7 +27,7 @@ URDF = """<robot name="small">
   </link>
 </robot>
 """
-KINDS = {"coacd": ".npz", "hull_gap": ".json", "meshes": ".bin"}
+KINDS = {"coacd": ".npz", "hull_gap": ".json", "hulls": ".npz", "meshes": ".bin"}
 
 
 def urdf2mjcf_cli(*args: str, cwd: Path, env: dict | None = None) -> subprocess.CompletedProcess:

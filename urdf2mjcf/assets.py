@@ -20,9 +20,11 @@ def safe_stem(text: str) -> str:
     return stem[:48]
 
 
-def content_name(stem: str, data: bytes) -> str:
-    """``<stem>_<10 hex digits of sha256(data)>``: identical content, identical suffix."""
-    return f"{safe_stem(stem)}_{hashlib.sha256(data).hexdigest()[:10]}"
+def content_name(stem: str, data: bytes, digest: bytes | None = None) -> str:
+    """``<stem>_<10 hex digits of sha256(data)>``: identical content, identical suffix
+    (``digest``: that sha256, when the caller has it)."""
+    digest = digest if digest is not None else hashlib.sha256(data).digest()
+    return f"{safe_stem(stem)}_{digest.hex()[:10]}"
 
 
 def stl_bytes(mesh: MeshData) -> bytes:
@@ -58,11 +60,14 @@ def mesh_asset(stem: str, mesh: MeshData) -> MeshAsset:
         data, ext = obj_bytes(mesh), "obj"  # repr() of each float: exact
     else:
         data, ext = stl_bytes(mesh), "stl"
-        # what the file holds: the faces' corners, rounded to float32
-        corners = vertices[np.unique(np.asarray(mesh.faces, dtype=np.int64))]
-        vertices = corners.astype(np.float32).astype(np.float64)
-    name = content_name(stem, data)
-    return MeshAsset(name=name, file=f"{name}.{ext}", data=data, vertices=vertices)
+        # what the file holds: the faces' corners (in index order), rounded to float32;
+        # a mask, not np.unique: the same corners without sorting every index
+        used = np.zeros(len(vertices), dtype=bool)
+        used[np.asarray(mesh.faces, dtype=np.int64).ravel()] = True
+        vertices = vertices[used].astype(np.float32).astype(np.float64)
+    digest = hashlib.sha256(data).digest()
+    name = content_name(stem, data, digest)
+    return MeshAsset(name=name, file=f"{name}.{ext}", data=data, vertices=vertices, digest=digest)
 
 
 def merge_assets(
@@ -73,12 +78,12 @@ def merge_assets(
     Returns the combined assets and a map from each new asset's name to the
     name it is stored under (the first asset with the same bytes wins).
     """
-    by_data = {hashlib.sha256(a.data).digest(): a.name for a in existing}
+    by_data = {_digest(a): a.name for a in existing}
     out = list(existing)
     renamed: dict[str, str] = {}
     names = {a.name for a in existing}
     for asset in new:
-        key = hashlib.sha256(asset.data).digest()
+        key = _digest(asset)
         if key in by_data:
             renamed[asset.name] = by_data[key]
             continue
@@ -91,3 +96,7 @@ def merge_assets(
         out.append(asset)
         renamed[asset.name] = asset.name
     return tuple(out), renamed
+
+
+def _digest(asset: MeshAsset) -> bytes:
+    return asset.digest or hashlib.sha256(asset.data).digest()

@@ -4,6 +4,7 @@
 
     <root>/coacd/<key>.npz      convex decompositions (passes/collision/decompositions.py)
     <root>/hull_gap/<key>.json  hull gaps of collision meshes (passes/collision/decompositions.py)
+    <root>/hulls/<key>.npz      convex hulls of near-convex collision meshes (the same module)
     <root>/meshes/<key>.bin     loaded, cleaned, decimated mesh files (passes/meshes/cache.py)
 
 An entry's name is :func:`make_key` of everything it depends on, so an entry
@@ -40,6 +41,7 @@ logger = logging.getLogger(__name__)
 KINDS = {
     "coacd": "convex decompositions",
     "hull_gap": "hull gaps",
+    "hulls": "convex hulls",
     "meshes": "loaded meshes",
 }
 """Every sub-folder we write, with what it holds; ``clear`` touches nothing else."""

@@ -370,6 +370,8 @@ class MeshAsset:
     vertices: np.ndarray | None = field(default=None, repr=False, compare=False)
     """(n, 3) float64 vertices exactly as ``data`` stores them (STL: rounded to float32),
     kept so that later passes (inertia, sensors) need not decode ``data`` again."""
+    digest: bytes = field(default=b"", repr=False, compare=False)
+    """sha256 of ``data`` (empty: not computed), so merging assets hashes each once."""
 
 
 @dataclass(frozen=True)

@@ -422,6 +422,31 @@ def test_second_run_takes_the_convexity_test_from_the_cache_too(build, cfg, monk
     assert snapshot(second)[:2] == snapshot(first)[:2], "same geoms and assets"
 
 
+def test_second_run_takes_the_convex_hull_from_the_cache(build, cfg, monkeypatch):
+    """A near-convex mesh on a warm cache: the stored hull, bit for bit, without
+    building a trimesh or running qhull; a corrupt hull entry is computed again."""
+    dented = build.mesh("d.stl", dented_box())
+    model = build.model(Link("block", collisions=(col(dented),)))
+    first = collision.run(model, cfg)
+    assert kinds(first).count("hull") == 1
+    (entry,) = (cfg.cache_dir / "hulls").glob("*.npz")
+    good = entry.read_bytes()
+
+    def boom(*args, **kwargs):
+        raise AssertionError("a stored hull needs neither trimesh nor qhull")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(collision, "as_trimesh", boom)
+        patched.setattr(collision, "convex_hull", boom)
+        second = collision.run(model, cfg)
+    assert snapshot(second)[:2] == snapshot(first)[:2], "same geoms and asset bytes"
+    for garbage in (b"not a zip file", good[: len(good) // 2]):
+        entry.write_bytes(garbage)
+        again = collision.run(model, cfg)
+        assert snapshot(again)[:2] == snapshot(first)[:2]
+        assert entry.read_bytes() == good
+
+
 def test_corrupt_cache_entry_is_ignored_and_rewritten(build, cfg):
     model = build.model(Link("bracket", collisions=(col(build.mesh("u.stl", u_shape())),)))
     first = collision.run(model, cfg)

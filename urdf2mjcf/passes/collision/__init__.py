@@ -20,6 +20,7 @@ across runs, processes, concurrent threads and OpenMP thread counts
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib.util
 import logging
 import os
@@ -330,26 +331,38 @@ def _classify(
     label = f"mesh '{ref.filename}'"
     name = ref.filename.replace("\\", "/").rsplit("/", 1)[-1]
     stem = safe_stem(Path(name).stem or "mesh")
+    # Keyed by the mesh as loaded (the file, its scale and the face limit all shape it),
+    # not by the file alone: a decimated mesh has its own gap and hull.
+    merged = array_digest(loaded.merged.vertices, loaded.merged.faces)
+    gap_key = cache_key(loaded.sha256, f"hull-gap:{merged}", GAP_PARAMS)
+    hull_key = cache_key(loaded.sha256, f"convex-hull:{merged}", _hull_params())
+    cached_gap = cache.load_gap(gap_key) if cache is not None else None
+    if cache is not None and cached_gap is not None and cached_gap <= cfg.max_hull_gap:
+        # A warm run's usual case: no trimesh, no qhull (the stored hull is bit-exact).
+        stored = cache.load_hull(hull_key)
+        if stored is not None:
+            notes.append(Note("hull", label, f"convex hull (hull gap {cached_gap:.3f})"))
+            return _Plan("hull", label, stem, pieces=(stored,))
     mesh = as_trimesh(loaded.merged)
     if len(mesh.faces) == 0:
         notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
         return _Plan("none", label, stem)
-    gap_key = cache_key(loaded.sha256, "hull-gap", GAP_PARAMS)
-    cached_gap = cache.load_gap(gap_key) if cache is not None else None
-    if cached_gap is not None:
-        fit = HullFit(hull=convex_hull(mesh.vertices), gap=cached_gap, diagonal=0.0)
+    if cached_gap is not None:  # the hull is computed where it is used, below
+        fit = HullFit(hull=None, gap=cached_gap, diagonal=0.0)
     else:
         fit = hull_fit(mesh)
-        if cache is not None and fit.hull is not None:
+        if fit.hull is None:
+            return _flat(label, stem, mesh.vertices, notes)
+        if cache is not None:
             cache.store_gap(gap_key, fit.gap)
-    if fit.hull is None:
-        notes.append(
-            Note("warning", label, f"mesh is flat; using a {FLAT_THICKNESS * 1e3:g} mm thick box")
-        )
-        return _Plan("box", label, stem, box=flat_box(mesh.vertices, FLAT_THICKNESS))
     if fit.gap <= cfg.max_hull_gap:
+        hull = fit.hull if fit.hull is not None else convex_hull(mesh.vertices)
+        if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
+            return _flat(label, stem, mesh.vertices, notes)
+        if cache is not None:
+            cache.store_hull(hull_key, hull)
         notes.append(Note("hull", label, f"convex hull (hull gap {fit.gap:.3f})"))
-        return _Plan("hull", label, stem, pieces=(fit.hull,))
+        return _Plan("hull", label, stem, pieces=(hull,))
     vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     key = cache_key(loaded.sha256, array_digest(vertices, faces), asdict(cfg.coacd))
@@ -357,7 +370,25 @@ def _classify(
     if parts is not None:
         notes.append(Note("cached", label, f"{len(parts)} convex parts from the cache"))
         return _Plan("parts", label, stem, pieces=tuple(parts))
-    return _Job(key, label, stem, name, fit.gap, fit.hull, vertices, faces)
+    hull = fit.hull if fit.hull is not None else convex_hull(mesh.vertices)
+    if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
+        return _flat(label, stem, mesh.vertices, notes)
+    return _Job(key, label, stem, name, fit.gap, hull, vertices, faces)
+
+
+def _flat(label: str, stem: str, vertices: np.ndarray, notes: list[Note]) -> _Plan:
+    notes.append(
+        Note("warning", label, f"mesh is flat; using a {FLAT_THICKNESS * 1e3:g} mm thick box")
+    )
+    return _Plan("box", label, stem, box=flat_box(vertices, FLAT_THICKNESS))
+
+
+@functools.cache
+def _hull_params() -> dict[str, str]:
+    """What a stored convex hull depends on besides the mesh: qhull's version."""
+    import scipy
+
+    return {"scipy": scipy.__version__}
 
 
 # ---------------------------------------------------------------------------

@@ -36,6 +36,7 @@ CACHE_FORMAT = 1
 
 _SUBDIR = "coacd"
 _GAP_SUBDIR = "hull_gap"
+_HULL_SUBDIR = "hulls"
 
 
 @functools.cache  # importlib.metadata reads the disk: once per process, not once per mesh
@@ -84,7 +85,17 @@ class DecompositionCache:
 
     def load(self, key: str) -> list[MeshData] | None:
         """The stored parts, or None when absent, unreadable or inconsistent."""
-        path = self.path(key)
+        return self._load(self.path(key), key)
+
+    def load_hull(self, key: str) -> MeshData | None:
+        """A stored convex hull (a warm run then needs neither trimesh nor qhull)."""
+        parts = self._load(self.dir.parent / _HULL_SUBDIR / f"{key}.npz", key)
+        return parts[0] if parts is not None and len(parts) == 1 else None
+
+    def store_hull(self, key: str, hull: MeshData) -> None:
+        write_entry(self.dir.parent / _HULL_SUBDIR, f"{key}.npz", _encode(key, [hull]))
+
+    def _load(self, path: Path, key: str) -> list[MeshData] | None:
         data = read_entry(path)
         if data is None:
             return None
@@ -96,17 +107,7 @@ class DecompositionCache:
 
     def store(self, key: str, parts: list[MeshData]) -> None:
         """Write atomically; a failure to write is logged, never raised."""
-        buf = io.BytesIO()
-        arrays: dict[str, np.ndarray] = {
-            "format": np.array([CACHE_FORMAT], dtype="<i8"),
-            "key": np.frombuffer(key.encode(), dtype=np.uint8),
-            "count": np.array([len(parts)], dtype="<i8"),
-        }
-        for i, part in enumerate(parts):
-            arrays[f"v{i}"] = np.ascontiguousarray(part.vertices, dtype="<f8")
-            arrays[f"f{i}"] = np.ascontiguousarray(part.faces, dtype="<i8")
-        np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub confuses **kwds with allow_pickle
-        write_entry(self.dir, f"{key}.npz", buf.getvalue())
+        write_entry(self.dir, f"{key}.npz", _encode(key, parts))
 
     def load_gap(self, key: str) -> float | None:
         """A stored hull gap (the convexity test is the slow part of a warm run)."""
@@ -126,6 +127,20 @@ class DecompositionCache:
             f"{key}.json",
             json.dumps({"key": key, "gap": gap}).encode(),
         )
+
+
+def _encode(key: str, parts: list[MeshData]) -> bytes:
+    buf = io.BytesIO()
+    arrays: dict[str, np.ndarray] = {
+        "format": np.array([CACHE_FORMAT], dtype="<i8"),
+        "key": np.frombuffer(key.encode(), dtype=np.uint8),
+        "count": np.array([len(parts)], dtype="<i8"),
+    }
+    for i, part in enumerate(parts):
+        arrays[f"v{i}"] = np.ascontiguousarray(part.vertices, dtype="<f8")
+        arrays[f"f{i}"] = np.ascontiguousarray(part.faces, dtype="<i8")
+    np.savez(buf, **arrays)  # type: ignore[arg-type]  # stub confuses **kwds with allow_pickle
+    return buf.getvalue()
 
 
 def _decode(data: bytes, key: str) -> list[MeshData]:
