@@ -284,3 +284,23 @@ def test_facility_demo_defaults_to_the_demo_written_for_the_facilitys_recipe():
     assert default_waypoints(ROOT, {"recipe": "imetro-compact"}) == demos / "imetro-compact.yaml"
     for other in ({"recipe": "imetro-two-hatches"}, {}, {"recipe": "../imetro-compact"}):
         assert default_waypoints(ROOT, other) == WAYPOINTS, other
+
+
+def test_a_trial_line_says_how_far_off_the_robot_located_each_component():
+    from urdf2mjcf.runner.cli import _trial_line
+
+    r = {
+        "seed": 3,
+        "ok": True,
+        "failed_step": None,
+        "message": "the CTB rests in 'trainer_seat_bin'",
+        "trial_wall": 12.04,
+        "sim_time": 76.8,
+        "localization": {"trainer": {"position_error_m": 0.00042, "yaw_error_deg": -0.0131}},
+    }
+    line = _trial_line(r)
+    assert line == (
+        "seed    3: success: the CTB rests in 'trainer_seat_bin'; trainer located 0.4 mm,"
+        " -0.013 deg off  (12.0 s wall, 76.8 s simulated)"
+    )
+    assert "located" not in _trial_line({**r, "localization": None})

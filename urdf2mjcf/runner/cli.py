@@ -237,10 +237,16 @@ class TrialRun:
 
 
 def _trial_line(r: dict) -> str:
+    """One trial's outcome: seed, verdict, message, the localization errors (each
+    component the robot located from its tags, against the truth) and the times."""
     where = "" if r["ok"] else f" at '{r['failed_step']}'"
+    located = "".join(
+        f"; {name} located {1000 * e['position_error_m']:.1f} mm, {e['yaw_error_deg']:+.3f} deg off"
+        for name, e in sorted((r.get("localization") or {}).items())
+    )
     return (
         f"seed {r['seed']:>4}: {'success' if r['ok'] else 'FAIL'}{where}: {r['message']}"
-        f"  ({r['trial_wall']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
+        f"{located}  ({r['trial_wall']:.1f} s wall, {r['sim_time']:.1f} s simulated)"
     )
 
 
