@@ -106,6 +106,22 @@ def home(m: mujoco.MjModel) -> np.ndarray:
     return m.key("home").qpos.copy()
 
 
+def pushed_open(model: mujoco.MjModel, manifest: dict, steps: int = 1500) -> np.ndarray:
+    """qpos after each step with every mockup joint pushed towards its upper limit
+    (twice its friction, plus 0.1) and the lid let go at 92 deg, the robot at home."""
+    d = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
+    d.qpos[model.joint("trainer_lid_joint").qposadr[0]] = math.radians(92)
+    trace = []
+    for _ in range(steps):
+        for name in mockup_joints(model, manifest):
+            j = model.joint(name)
+            d.qfrc_applied[j.dofadr[0]] = 2.0 * model.dof_frictionloss[j.dofadr[0]] + 0.1
+        mujoco.mj_step(model, d)
+        trace.append(d.qpos.copy())
+    return np.array(trace)
+
+
 # ------------------------------------------------------------------ the classes
 
 
@@ -275,20 +291,7 @@ def test_mockups_pushed_open_simulate_exactly_as_unfiltered(built):
     the lid let go at 92 deg as the demo does), the robot holding home: the
     filtered facility and its unfiltered twin step through identical states."""
     m, twin, manifest = load(built["imetro"])
-    runs = []
-    for model in (m, twin):
-        d = mujoco.MjData(model)
-        mujoco.mj_resetDataKeyframe(model, d, model.key("home").id)
-        d.qpos[model.joint("trainer_lid_joint").qposadr[0]] = math.radians(92)
-        trace = []
-        for _ in range(1500):
-            for name in mockup_joints(model, manifest):
-                j = model.joint(name)
-                d.qfrc_applied[j.dofadr[0]] = 2.0 * model.dof_frictionloss[j.dofadr[0]] + 0.1
-            mujoco.mj_step(model, d)
-            trace.append(d.qpos.copy())
-        runs.append(np.array(trace))
-    filtered, unfiltered = runs
+    filtered, unfiltered = (pushed_open(model, manifest) for model in (m, twin))
     moved = np.abs(filtered[-1] - filtered[0]).max()
     assert moved > 0.1, "the mockups moved"
     np.testing.assert_array_equal(filtered, unfiltered)
