@@ -168,6 +168,13 @@ def test_a_start_in_collision_names_the_two_bodies():
     with pytest.raises(PlanningError, match=r"start state is in collision: 'link2'.*'post'") as e:
         planner(m).plan(full(m, start), GOAL)
     assert isinstance(e.value, ConversionError)  # the package's one error base
+    # a facility names the link a folded fixture was described on, not its weld body
+    def link(g: int) -> str:
+        return f"{m.body(m.geom_bodyid[g]).name}_link"
+
+    named = JointPlanner(m, [0, 1], VMAX, AMAX, link_of_geom=link)
+    with pytest.raises(PlanningError, match=r"collision: 'link2_link'.*'post_link'"):
+        named.plan(full(m, start), GOAL)
 
 
 def test_a_goal_out_of_range_is_refused():

@@ -324,6 +324,7 @@ class Demo:
                 AMAX,
                 allowed_pairs=allowed,
                 seed=0,
+                link_of_geom=self.fac.link_of_geom,
             )
         self._planner.vmax = np.asarray(self.ctl.vmax, float).copy()
         start = self.d.qpos.copy()

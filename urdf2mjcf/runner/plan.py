@@ -52,7 +52,7 @@ import copy
 import logging
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -173,7 +173,11 @@ class JointPlanner:
         seed: int = 0,
         time_limit: float = 2.0,
         resolution: float = 0.01,
+        link_of_geom: Callable[[int], str] | None = None,
     ) -> None:
+        """``link_of_geom``: the name an error gives a geom's body (a built facility's
+        ``Facility.link_of_geom``: the link a folded fixture was described on); by
+        default the MuJoCo body's name."""
         import toppra  # noqa: F401  (slow first import, here rather than in a move's timing)
 
         # MuJoCo reports a pair only closer than its geoms' margin: widen it on a copy.
@@ -204,6 +208,7 @@ class JointPlanner:
         self.resolution = float(resolution)
         self.robot = _subtree(m, m.jnt_bodyid[self.joints])
         self._geom_body = m.geom_bodyid.copy()
+        self._link_of_geom = link_of_geom
         self._contype0 = m.geom_contype.copy()
         self._conaffinity0 = m.geom_conaffinity.copy()
         self.ignored = np.zeros(m.nbody, bool)
@@ -298,13 +303,12 @@ class JointPlanner:
             return None
         c = int(np.flatnonzero(counted)[np.argmin(dist[counted])])
         body, geom = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
-        return _Contact(
-            _name(m, body, int(b1[c])),
-            _name(m, body, int(b2[c])),
-            _name(m, geom, int(geoms[c, 0])),
-            _name(m, geom, int(geoms[c, 1])),
-            float(dist[c]),
-        )
+        g1, g2 = int(geoms[c, 0]), int(geoms[c, 1])
+        if self._link_of_geom is not None:
+            name1, name2 = self._link_of_geom(g1), self._link_of_geom(g2)
+        else:
+            name1, name2 = _name(m, body, int(b1[c])), _name(m, body, int(b2[c]))
+        return _Contact(name1, name2, _name(m, geom, g1), _name(m, geom, g2), float(dist[c]))
 
     def _contact_at(self, q: np.ndarray) -> _Contact | None:
         self._set(np.asarray(q, float))
