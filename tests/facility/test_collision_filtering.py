@@ -106,6 +106,20 @@ def home(m: mujoco.MjModel) -> np.ndarray:
     return m.key("home").qpos.copy()
 
 
+def one_joint_at_a_time(
+    m: mujoco.MjModel, names: list[str], q0: np.ndarray, samples: int
+) -> list[np.ndarray]:
+    """``q0`` with each joint of ``names`` in turn at ``samples`` points across its range."""
+    poses = []
+    for name in names:
+        j = m.joint(name)
+        for q in np.linspace(*j.range, samples):
+            pose = q0.copy()
+            pose[j.qposadr[0]] = q
+            poses.append(pose)
+    return poses
+
+
 def pushed_open(model: mujoco.MjModel, manifest: dict, steps: int = 1500) -> np.ndarray:
     """qpos after each step with every mockup joint pushed towards its upper limit
     (twice its friction, plus 0.1) and the lid let go at 92 deg, the robot at home."""
@@ -187,13 +201,7 @@ def test_every_mockup_joint_through_its_range_finds_the_same_contacts(built, rec
     d, dt = mujoco.MjData(m), mujoco.MjData(twin)
     q0 = home(m)
     names = mockup_joints(m, manifest)
-    poses = []
-    for name in names:
-        j = m.joint(name)
-        for q in np.linspace(*j.range, 13):
-            pose = q0.copy()
-            pose[j.qposadr[0]] = q
-            poses.append(pose)
+    poses = one_joint_at_a_time(m, names, q0, 13)
     # everything at one end, then random combinations
     rng = np.random.default_rng(3)
     for where in [0.0, 1.0] + list(rng.uniform(size=60)):

@@ -16,7 +16,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from tests.facility.test_collision_filtering import home, mockup_joints, pushed_open, touching
+from tests.facility.test_collision_filtering import (
+    home,
+    mockup_joints,
+    one_joint_at_a_time,
+    pushed_open,
+    touching,
+)
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.fold import fold_fixtures
 from urdf2mjcf.facility.recipe import load_recipe
@@ -100,13 +106,7 @@ def test_the_same_contacts_at_swept_mockup_poses(pair):
     q0 = home(m)
     bag = m.joint(manifest["components"]["ctb"]["joints"][0]).qposadr[0]
     rng = np.random.default_rng(5)
-    poses = []
-    for name in names:
-        j = m.joint(name)
-        for q in np.linspace(*j.range, 9):
-            pose = q0.copy()
-            pose[j.qposadr[0]] = q
-            poses.append(pose)
+    poses = one_joint_at_a_time(m, names, q0, 9)
     for _ in range(40):  # random combinations, some pushed a little past their ranges
         pose = q0.copy()
         for name in names:

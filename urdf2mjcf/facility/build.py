@@ -166,7 +166,7 @@ def build_facility(
             offsets,
             built,
             roles,
-            compiled=compiled,  # validation compiled this very scene.xml (and our tags)
+            compiled=compiled,  # the scene.xml written: validation's, or compiled after fold/tags
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
         )
         if folded is not None and folded.moved:

@@ -130,12 +130,12 @@ def _twin(geom: Any, group: str | None) -> Any | None:
     return None
 
 
-def fold_fixtures(scene: Path, m: Any, *, merge_visuals: bool = True) -> Folded:
+def fold_fixtures(scene: Path, m: Any) -> Folded:
     """Rewrite the MJCF file ``scene`` (compiled as ``m``) with its static fixture
-    geoms in their weld bodies (file order). With ``merge_visuals``, a fixture whose
-    visual twin (an unnamed geom of the ``visual`` class with the same shape and pose
-    on the same body) exists takes over its material and group and the twin goes: one
-    geom to pose and bound instead of two, drawn the same."""
+    geoms in their weld bodies (file order). A fixture whose visual twin (an unnamed
+    geom of the ``visual`` class with the same shape and pose on the same body) exists
+    takes over its material and group and the twin goes: one geom to pose and bound
+    instead of two, drawn the same."""
     from lxml import etree
 
     from .fiducials import _indent
@@ -143,7 +143,7 @@ def fold_fixtures(scene: Path, m: Any, *, merge_visuals: bool = True) -> Folded:
     root = etree.fromstring(scene.read_bytes())
     elements = {b.get("name"): b for b in root.iter("body") if b.get("name")}
     pinned = _pinned(m)
-    group = _visual_group(root) if merge_visuals else None
+    group = _visual_group(root)
     out = Folded()
     for geom in list(root.iter("geom")):
         name = geom.get("name")
