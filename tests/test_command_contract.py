@@ -411,3 +411,67 @@ def test_an_unexpected_exception_is_one_line_and_debug_shows_the_traceback():
     assert loud.returncode == 1
     assert "Traceback" in loud.stderr and "in buggy" in loud.stderr
     assert loud.stderr.splitlines()[-1] == "error: internal error in buggy: KeyError: 'missing'"
+
+
+WRAPPED_SIGTERM = """
+import os, signal, sys, time
+from pathlib import Path
+import click
+from urdf2mjcf.cli import run_command
+from urdf2mjcf.output import staged_folder
+
+@click.command("stage")
+def stage():
+    with staged_folder(Path(sys.argv[1])) as folder:
+        (folder / "half.xml").write_text("<mujoco/>")
+        try:  # as pybind11 does when a module's init is interrupted
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(30)
+        except BaseException as exc:
+            raise ImportError("initialization failed") from exc
+
+run_command(stage, args=[])
+"""
+
+
+def test_sigterm_that_a_native_import_wraps_is_still_a_termination(tmp_path):
+    """SIGTERM landing while a native module is imported reaches us as the module's
+    ImportError: still exit 143, one line, the staged output gone."""
+    proc = subprocess.run(
+        [sys.executable, "-c", WRAPPED_SIGTERM, str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 143, proc.stderr
+    assert proc.stderr.splitlines() == [
+        "error: stage terminated (SIGTERM); its unfinished output removed"
+    ]
+    assert list(tmp_path.iterdir()) == []
+
+
+SWALLOWED_SIGTERM = """
+import os, signal, time
+import click
+from urdf2mjcf.cli import run_command
+
+@click.command("swallow")
+def swallow():
+    try:  # as a __del__ or a C callback does: the exception is printed and dropped
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(30)
+    except BaseException:
+        pass
+
+run_command(swallow, args=[])
+"""
+
+
+def test_sigterm_whose_exception_was_swallowed_still_exits_143():
+    proc = subprocess.run(
+        [sys.executable, "-c", SWALLOWED_SIGTERM], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 143, proc.stderr
+    assert proc.stderr.splitlines() == [
+        "error: swallow terminated (SIGTERM) as it finished; its output is complete"
+    ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import signal
@@ -293,9 +294,16 @@ def run_command(
         for sub in command.commands.values():
             _add_debug_option(sub)
     debug = "--debug" in (sys.argv[1:] if args is None else args)
-    restore = _terminate_cleanly()
+    sigterm = _terminate_cleanly()
     try:
-        command.main(args=args, prog_name=prog_name, standalone_mode=False)
+        try:
+            command.main(args=args, prog_name=prog_name, standalone_mode=False)
+        except Exception as exc:
+            # A native module that is being imported when SIGTERM lands wraps our
+            # Terminated in its own error (pybind11: "ImportError: initialization failed")
+            if sigterm.received:
+                raise Terminated() from exc
+            raise
     except Terminated:  # SIGTERM: the staged output was removed on the way out
         click.echo(
             f"error: {command.name} terminated (SIGTERM); its unfinished output removed", err=True
@@ -336,7 +344,13 @@ def run_command(
         )
         sys.exit(1)
     finally:
-        restore()
+        sigterm.restore()
+    if sigterm.received:  # its Terminated was swallowed where Python cannot raise (a __del__)
+        click.echo(
+            f"error: {command.name} terminated (SIGTERM) as it finished; its output is complete",
+            err=True,
+        )
+        sys.exit(128 + signal.SIGTERM)
     sys.exit(0)
 
 
@@ -346,12 +360,27 @@ class Terminated(BaseException):
     action (the process killed where it stands) would leave behind."""
 
 
-def _terminate_cleanly() -> Any:
-    """Turn SIGTERM into :class:`Terminated` in this process; returns the undo. Child
-    processes are spawned or exec'd (default handlers), and one forked after this
-    still dies by SIGTERM as before."""
+@dataclasses.dataclass
+class _SigtermHandler:
+    """Whether SIGTERM arrived (the Terminated it raised may reach us wrapped), and
+    how to put the previous handler back."""
+
+    received: bool = False
+    previous: Any = None
+    installed: bool = False
+
+    def restore(self) -> None:
+        if self.installed:
+            signal.signal(signal.SIGTERM, self.previous)
+
+
+def _terminate_cleanly() -> _SigtermHandler:
+    """Turn SIGTERM into :class:`Terminated` in this process. Child processes are
+    spawned or exec'd (default handlers), and one forked after this still dies by
+    SIGTERM as before."""
+    state = _SigtermHandler()
     if threading.current_thread() is not threading.main_thread():
-        return lambda: None
+        return state
     main = os.getpid()
 
     def handler(signum: int, frame: Any) -> None:
@@ -359,10 +388,12 @@ def _terminate_cleanly() -> Any:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
             os.kill(os.getpid(), signal.SIGTERM)
             return
+        state.received = True
         raise Terminated()
 
-    previous = signal.signal(signal.SIGTERM, handler)
-    return lambda: signal.signal(signal.SIGTERM, previous)
+    state.previous = signal.signal(signal.SIGTERM, handler)
+    state.installed = True
+    return state
 
 
 def urdf2mjcf_main() -> None:
