@@ -27,27 +27,28 @@ VERDICT = ("seed", "ok", "failed_step", "message", "verdict", "sim_time", "steps
 
 
 def _wait_for_the_other(job: tuple[int, str]) -> int:
-    """Job 0 ends only after job 1 has ended: they finish in the reverse of their order."""
+    """Job 0 ends only after the caller has seen job 1 end: they finish in the reverse
+    of their order, whatever the machine's load."""
     index, folder = job
-    marker = Path(folder) / "1.done"
     if index == 0:
+        seen = Path(folder) / "seen-1"  # written by the caller's progress callback
         deadline = time.monotonic() + 120
-        while not marker.exists():
+        while not seen.exists():
             if time.monotonic() > deadline:
-                raise TimeoutError("job 1 never ended")
+                raise TimeoutError("the caller never saw job 1 end")
             time.sleep(0.02)
-        time.sleep(2.0)  # time for the caller to have seen job 1 end first
-    else:
-        marker.write_text("done")
     return index * 10
 
 
 def test_local_results_come_in_job_order_and_progress_in_finishing_order(tmp_path):
     finished: list[tuple[int, int]] = []
+
+    def on_done(i: int, result: int) -> None:
+        finished.append((i, result))
+        (tmp_path / f"seen-{i}").write_text("")
+
     jobs = [(0, str(tmp_path)), (1, str(tmp_path))]
-    results = run_jobs(
-        _wait_for_the_other, jobs, workers=2, on_done=lambda i, r: finished.append((i, r))
-    )
+    results = run_jobs(_wait_for_the_other, jobs, workers=2, on_done=on_done)
     assert results == [0, 10]
     assert finished == [(1, 10), (0, 0)]
 
