@@ -303,3 +303,26 @@ def test_facility_demo_overwrite_writes_into_the_users_folder_and_keeps_its_file
     assert json.loads(report.read_text())["generator"] == "facility-demo"
     assert (frames / "notes" / "thesis.tex").read_text() == THESIS
     assert (frames / "first.png").is_file()
+
+
+def test_an_interrupt_the_instant_a_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """Where a SIGTERM sent on seeing the staging folder lands: just after the folder
+    is made, before its maker has returned its name."""
+    import os
+
+    from urdf2mjcf import output
+
+    real = os.mkdir
+
+    def mkdir_then_interrupt(path, *args, **kwargs):
+        real(path, *args, **kwargs)
+        if Path(path).name.startswith((".out-", ".urdf2mjcf-")):
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "mkdir", mkdir_then_interrupt)
+    with pytest.raises(KeyboardInterrupt), output.staged_folder(tmp_path / "out"):
+        pass
+    with pytest.raises(KeyboardInterrupt):
+        output.write_atomic(tmp_path / "new" / "robot.xml", {"robot.xml": b"<mujoco/>"}, print)
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -36,6 +37,29 @@ def check_target(output: Path, overwrite: bool, extra: tuple[str, ...] = ()) -> 
     for path in (output, *(output.parent / name for name in extra)):
         if path.exists() and not overwrite:
             raise OutputError("already exists; pass --overwrite to replace it", file=path)
+
+
+def _temp_folder(parent: Path, prefix: str, made: list[Path]) -> Path:
+    """Make a new, uniquely named folder in ``parent``, its name put in ``made``
+    before it exists: an interrupt (Ctrl-C, SIGTERM) landing the instant after the
+    folder is made still leaves the caller its name to remove (``tempfile.mkdtemp``
+    returns it only afterwards, and a SIGTERM sent on seeing the folder lands there)."""
+    while True:
+        path = parent / f"{prefix}{secrets.token_hex(6)}"
+        if path.exists():
+            continue
+        made.append(path)
+        try:
+            path.mkdir(mode=0o700)
+        except FileExistsError:  # another process took the name this instant: not ours
+            made.remove(path)
+            continue
+        return path
+
+
+def _remove_all(folders: Sequence[Path]) -> None:
+    for folder in folders:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def _make_parents(folder: Path) -> list[Path]:
@@ -65,9 +89,10 @@ def write_atomic(
     """
     folder = output.parent
     created = _make_parents(folder)
-    stage = Path(tempfile.mkdtemp(prefix=".urdf2mjcf-", dir=folder))
+    made: list[Path] = []
     final: list[Path] = []
     try:
+        stage = _temp_folder(folder, ".urdf2mjcf-", made)
         for rel, data in files.items():
             path = stage / rel
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -85,11 +110,11 @@ def write_atomic(
     except BaseException:
         for path in final:  # only files that did not exist before: nothing of the user's
             path.unlink(missing_ok=True)
-        shutil.rmtree(stage, ignore_errors=True)
+        _remove_all(made)
         _remove_if_empty(created)
         raise
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        _remove_all(made)
 
 
 # -- single files we write (JSON reports) -------------------------------------------------
@@ -189,14 +214,14 @@ def staged_folder(output: Path) -> Iterator[Path]:
     """A temporary folder beside ``output`` to build in. On failure it is removed, with
     any parent folders made for it, so nothing is left behind."""
     created = _make_parents(output.parent)
-    stage = Path(tempfile.mkdtemp(prefix=f".{output.name}-", dir=output.parent))
+    made: list[Path] = []
     try:
-        yield stage
+        yield _temp_folder(output.parent, f".{output.name}-", made)
     except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
+        _remove_all(made)
         _remove_if_empty(created)
         raise
-    shutil.rmtree(stage, ignore_errors=True)
+    _remove_all(made)
 
 
 def install_folder(
@@ -220,10 +245,11 @@ def install_folder(
             f"would replace '{clash[0]}', which we did not write; pass --overwrite to replace it",
             file=output,
         )
-    trash = Path(tempfile.mkdtemp(prefix=f".{output.name}-old-", dir=output.parent))
+    made: list[Path] = []
     moved: list[str] = []
     placed: list[str] = []
     try:
+        trash = _temp_folder(output.parent, f".{output.name}-old-", made)
         for rel in sorted(ours | set(clash)):
             src = output / rel
             if src.is_file() or src.is_symlink():
@@ -242,7 +268,7 @@ def install_folder(
             os.replace(trash / rel, output / rel)
         raise
     finally:
-        shutil.rmtree(trash, ignore_errors=True)
+        _remove_all(made)
     kept = set(new)
     for rel in moved:  # folders that only held our old files go too
         if rel not in kept:
