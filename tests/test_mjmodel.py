@@ -64,9 +64,7 @@ def colliding(m, d) -> list[tuple]:
     out = []
     for g in range(m.ngeom):
         if m.geom_contype[g] or m.geom_conaffinity[g]:
-            out.append(
-                (int(m.geom_type[g]), *d.geom_xpos[g], *d.geom_xmat[g], *m.geom_size[g])
-            )
+            out.append((int(m.geom_type[g]), *d.geom_xpos[g], *d.geom_xmat[g], *m.geom_size[g]))
     return out
 
 
@@ -92,8 +90,12 @@ def test_collision_only_compile_has_the_dynamics_and_contacts_of_the_whole(writt
         name = whole.mesh(i).name
         if name in mesh_of:
             j = mesh_of[name]
-            a = whole.mesh_vert[whole.mesh_vertadr[i] : whole.mesh_vertadr[i] + whole.mesh_vertnum[i]]
-            b = light.mesh_vert[light.mesh_vertadr[j] : light.mesh_vertadr[j] + light.mesh_vertnum[j]]
+            a = whole.mesh_vert[
+                whole.mesh_vertadr[i] : whole.mesh_vertadr[i] + whole.mesh_vertnum[i]
+            ]
+            b = light.mesh_vert[
+                light.mesh_vertadr[j] : light.mesh_vertadr[j] + light.mesh_vertnum[j]
+            ]
             np.testing.assert_array_equal(a, b)
 
 
@@ -129,3 +131,21 @@ def test_a_document_that_needs_what_was_left_out_compiles_whole(written):
     m, _ = mjmodel.compile_home(tagged, files, collision_only=True)
     whole = mujoco.MjModel.from_xml_string(tagged.decode(), files)
     assert m.nmesh == whole.nmesh and m.npair == 1
+
+
+def test_a_collision_only_compile_is_given_only_the_files_it_names(written, monkeypatch):
+    xml, files = written
+    given: list[set[str]] = []
+    compile_xml = mjmodel.compile_xml
+
+    def spy(doc, assets, warnings=None):
+        given.append(set(assets))
+        return compile_xml(doc, assets, warnings)
+
+    monkeypatch.setattr(mjmodel, "compile_xml", spy)
+    light, _ = mjmodel.compile_home(xml, files, collision_only=True)
+    assert len(given) == 1
+    meshes = {light.mesh(i).name for i in range(light.nmesh)}
+    assert meshes and all(any(m in name for name in given[0]) for m in meshes)
+    left_out = set(files) - given[0]
+    assert "robot.xml" in left_out and any("colored_box" in n for n in left_out), left_out

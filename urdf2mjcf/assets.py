@@ -32,8 +32,14 @@ def stl_bytes(mesh: MeshData) -> bytes:
     v = np.asarray(mesh.vertices, dtype=np.float64)
     f = np.asarray(mesh.faces, dtype=np.int64)
     tri = v[f]  # (m, 3, 3)
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    a, b = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    # np.cross and np.linalg.norm, written out: the same operations in the same order
+    # (the same bytes), without their generic axis handling (a third of the time)
+    n = np.empty_like(a)
+    n[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    n[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    n[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    norm = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1] + n[:, 2] * n[:, 2])[:, None]
     n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
     rec = np.zeros(len(f), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
     rec["n"] = n

@@ -20,6 +20,7 @@ meshes an earlier one did.
 
 from __future__ import annotations
 
+import re
 import threading
 from collections.abc import Mapping
 from typing import Any
@@ -115,7 +116,7 @@ def compile_home(
         m = last[2]
     else:
         try:
-            m = compile_xml(doc, files)
+            m = compile_xml(doc, files if doc is whole else files_named(files, doc))
         except ValueError:
             if doc is whole:
                 raise
@@ -123,6 +124,17 @@ def compile_home(
     with LOCK:
         _last = (key, dict(files), m)
     return m, home_data(m)
+
+
+_FILE_ATTR = re.compile(rb'\bfile="([^"]*)"')
+
+
+def files_named(files: Mapping[str, bytes], *docs: bytes) -> dict[str, bytes]:
+    """The ``files`` whose name one of ``docs`` mentions in a ``file`` attribute:
+    MuJoCo copies every file it is given into its VFS and hashes it, and the visual
+    meshes and textures a collision-only document leaves out are most of the bytes."""
+    named = {m.rsplit(b"/", 1)[-1].decode() for doc in docs for m in _FILE_ATTR.findall(doc)}
+    return {name: data for name, data in files.items() if name.rsplit("/", 1)[-1] in named}
 
 
 def without_visuals(xml: bytes) -> bytes | None:

@@ -11,6 +11,7 @@ first and the last step only (see :func:`run`).
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,7 @@ from typing import Any
 
 from ..errors import ValidationError
 from ..mjmodel import LOCK as _LOCK
-from ..mjmodel import compile_xml, home_data
+from ..mjmodel import compile_xml, files_named, home_data, without_visuals
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +58,13 @@ def run(
     own included); they are read from disk and compiled from memory under
     those names, as the other passes compile, so MuJoCo's mesh cache answers
     (see :mod:`urdf2mjcf.mjmodel`).
+
+    With ``files``, the second of simulation runs on the model's physics twin
+    (its documents without the visual geoms, :func:`~urdf2mjcf.mjmodel.without_visuals`:
+    the same bodies, joints, colliding geoms and actuators, so the same
+    trajectory bit for bit) in a thread while the whole model compiles: MuJoCo
+    releases the GIL in both, and on two cores the stepping costs no time. The
+    whole model is still compiled, and its sensors evaluated at home.
     """
     if not cfg.enabled:
         return None
@@ -67,35 +75,38 @@ def run(
     with _LOCK:
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(lambda msg: warnings.append(str(msg).strip()))
+        twin: _Stepper | None = None
         try:
             try:
                 if files is None:
                     m = mujoco.MjModel.from_xml_path(str(xml_path))
                 else:
                     written = {name: (xml_path.parent / name).read_bytes() for name in files}
+                    physics = _physics_files(written)
+                    if physics is not None:
+                        twin = _Stepper(written[xml_path.name], physics, cfg, warnings)
+                        twin.start()
                     m = compile_xml(written[xml_path.name], written, warnings)
             except ValueError as exc:
                 message = " ".join(str(exc).split())
                 raise ValidationError(f"MuJoCo rejected the model: {message}", file=shown) from None
-            d = home_data(m)
-            steps = int(round(cfg.duration / m.opt.timestep))
-            # Sensors read the state and never change it, so they are evaluated in the
-            # first and the last step (one MuJoCo cannot evaluate still fails), not in
-            # every step between: a lidar's rangefinders (1636 rays on tiago_pro) cost
-            # thirty times the physics. The trajectory is the same either way.
-            flags = m.opt.disableflags
-            quiet = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
-            try:
-                for i in range(steps):
-                    m.opt.disableflags = flags if i in (0, steps - 1) else quiet
-                    mujoco.mj_step(m, d)
-                    if warnings:
-                        break
-            except mujoco.FatalError as exc:
-                raise _fatal(exc, m, cfg, shown) from None
-            finally:
-                m.opt.disableflags = flags
+            if twin is not None:
+                twin.join()
+                if twin.rejected:  # something used what the twin left out: step the whole
+                    twin = None
+            if twin is None:
+                d, steps, stepped = _simulate(m, cfg, warnings)
+            else:
+                try:  # the whole model's sensors at home (rays see visual geoms too)
+                    mujoco.mj_forward(m, home_data(m))
+                except mujoco.FatalError as exc:
+                    raise _fatal(exc, m, cfg, shown) from None
+                d, steps, stepped = twin.data, twin.steps, twin.model
+            if isinstance(d, Exception):
+                raise _fatal(d, stepped, cfg, shown) from None
         finally:
+            if twin is not None:
+                twin.join()  # never leave it warning into a restored (default: a log file) handler
             mujoco.set_mju_user_warning(previous)
     raised = [
         f"{mujoco.mjtWarning(i).name} x{d.warning[i].number}"
@@ -109,6 +120,74 @@ def run(
         )
     log.debug("validated %s: nbody=%d nq=%d", shown, m.nbody, m.nq)
     return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps, model=m)
+
+
+def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, int, Any]:
+    """Step ``m`` for ``cfg.duration`` from home: (its data, or the FatalError that
+    stopped it; the steps asked for; ``m``). Stops at the first warning."""
+    import mujoco
+
+    d = home_data(m)
+    steps = int(round(cfg.duration / m.opt.timestep))
+    # Sensors read the state and never change it, so they are evaluated in the
+    # first and the last step (one MuJoCo cannot evaluate still fails), not in
+    # every step between: a lidar's rangefinders (1636 rays on tiago_pro) cost
+    # thirty times the physics. The trajectory is the same either way.
+    flags = m.opt.disableflags
+    quiet = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+    try:
+        for i in range(steps):
+            m.opt.disableflags = flags if i in (0, steps - 1) else quiet
+            mujoco.mj_step(m, d)
+            if warnings:
+                break
+    except mujoco.FatalError as exc:
+        return exc, steps, m
+    finally:
+        m.opt.disableflags = flags
+    return d, steps, m
+
+
+def _physics_files(written: dict[str, bytes]) -> dict[str, bytes] | None:
+    """``written`` with each MJCF document's visual geoms left out, where
+    :func:`without_visuals` finds that safe, and only the files the documents
+    still name; None when no document has a visual geom to leave out."""
+    twin = dict(written)
+    for name, data in written.items():
+        if name.endswith(".xml"):
+            stripped = without_visuals(data)
+            if stripped is not None:
+                twin[name] = stripped
+    if twin == written:
+        return None
+    return files_named(twin, *(data for name, data in twin.items() if name.endswith(".xml")))
+
+
+class _Stepper(threading.Thread):
+    """Compiles the physics twin and simulates it, beside the whole model's compile.
+    Warnings go to the handler the caller set (MuJoCo's is process-wide)."""
+
+    def __init__(
+        self, xml: bytes, files: dict[str, bytes], cfg: ValidateConfig, warnings: list[str]
+    ):
+        super().__init__(name="urdf2mjcf-validate", daemon=True)
+        self.xml, self.files, self.cfg, self.warnings = xml, files, cfg, warnings
+        self.rejected = False
+        self.data: Any = None
+        self.model: Any = None
+        self.steps = 0
+
+    def run(self) -> None:
+        import mujoco
+
+        try:
+            m = mujoco.MjModel.from_xml_string(self.xml.decode(), self.files)
+        except ValueError:
+            self.rejected = True
+            return
+        finally:
+            self.files = {}  # the bytes are the caller's; keep no second reference
+        self.data, self.steps, self.model = _simulate(m, self.cfg, self.warnings)
 
 
 def _fatal(exc: Exception, m: Any, cfg: ValidateConfig, shown: Path) -> ValidationError:
@@ -126,4 +205,3 @@ def _fatal(exc: Exception, m: Any, cfg: ValidateConfig, shown: Path) -> Validati
     else:
         message = f"MuJoCo stopped while simulating {cfg.duration:g} s: {message}"
     return ValidationError(message, file=shown)
-
