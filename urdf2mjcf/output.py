@@ -46,7 +46,7 @@ def _temp_folder(parent: Path, prefix: str, made: list[Path]) -> Path:
     returns it only afterwards, and a SIGTERM sent on seeing the folder lands there)."""
     while True:
         path = parent / f"{prefix}{secrets.token_hex(6)}"
-        if path.exists():
+        if path.exists():  # someone's: never put in ``made``, not even for an instant
             continue
         made.append(path)
         try:

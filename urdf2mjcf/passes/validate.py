@@ -95,15 +95,15 @@ def run(
                 if twin.rejected:  # something used what the twin left out: step the whole
                     twin = None
             if twin is None:
-                d, steps, stepped = _simulate(m, cfg, warnings)
+                d, steps = _simulate(m, cfg, warnings)
             else:
                 try:  # the whole model's sensors at home (rays see visual geoms too)
                     mujoco.mj_forward(m, home_data(m))
                 except mujoco.FatalError as exc:
                     raise _fatal(exc, m, cfg, shown) from None
-                d, steps, stepped = twin.data, twin.steps, twin.model
-            if isinstance(d, Exception):
-                raise _fatal(d, stepped, cfg, shown) from None
+                d, steps = twin.data, twin.steps
+            if isinstance(d, Exception):  # the model stepped says how big its arena is
+                raise _fatal(d, m if twin is None else twin.model, cfg, shown) from None
         finally:
             if twin is not None:
                 twin.join()  # never leave it warning into a restored (default: a log file) handler
@@ -122,9 +122,9 @@ def run(
     return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps, model=m)
 
 
-def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, int, Any]:
+def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, int]:
     """Step ``m`` for ``cfg.duration`` from home: (its data, or the FatalError that
-    stopped it; the steps asked for; ``m``). Stops at the first warning."""
+    stopped it; the steps asked for). Stops at the first warning."""
     import mujoco
 
     d = home_data(m)
@@ -142,24 +142,24 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
             if warnings:
                 break
     except mujoco.FatalError as exc:
-        return exc, steps, m
+        return exc, steps
     finally:
         m.opt.disableflags = flags
-    return d, steps, m
+    return d, steps
 
 
 def _physics_files(written: dict[str, bytes]) -> dict[str, bytes] | None:
     """``written`` with each MJCF document's visual geoms left out, where
     :func:`without_visuals` finds that safe, and only the files the documents
     still name; None when no document has a visual geom to leave out."""
-    twin = dict(written)
-    for name, data in written.items():
-        if name.endswith(".xml"):
-            stripped = without_visuals(data)
-            if stripped is not None:
-                twin[name] = stripped
-    if twin == written:
+    stripped = {
+        name: lean
+        for name, data in written.items()
+        if name.endswith(".xml") and (lean := without_visuals(data)) is not None
+    }
+    if not stripped:
         return None
+    twin = {**written, **stripped}
     return files_named(twin, *(data for name, data in twin.items() if name.endswith(".xml")))
 
 
@@ -187,7 +187,8 @@ class _Stepper(threading.Thread):
             return
         finally:
             self.files = {}  # the bytes are the caller's; keep no second reference
-        self.data, self.steps, self.model = _simulate(m, self.cfg, self.warnings)
+        self.model = m
+        self.data, self.steps = _simulate(m, self.cfg, self.warnings)
 
 
 def _fatal(exc: Exception, m: Any, cfg: ValidateConfig, shown: Path) -> ValidationError:
