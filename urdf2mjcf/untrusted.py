@@ -65,8 +65,9 @@ def env_number(name: str, raw: str, *, low: float, high: float) -> float:
     except ValueError:
         raise InputError(f"'{excerpt(raw)}' is not a number", file=f"${name}") from None
     if not math.isfinite(value) or not low <= value <= high:
-        raise InputError(f"'{excerpt(raw)}' is not a number from {low:g} to {high:g}",
-                         file=f"${name}")
+        raise InputError(
+            f"'{excerpt(raw)}' is not a number from {low:g} to {high:g}", file=f"${name}"
+        )
     return value
 
 
@@ -97,11 +98,15 @@ def check_regular(
     except FileNotFoundError:
         raise error(f"{what} not found: {path}", file=path, element=element) from None
     except OSError as exc:
-        raise error(f"cannot read {what} {path}: {exc.strerror or exc}", file=path,
-                    element=element) from None
+        raise error(
+            f"cannot read {what} {path}: {exc.strerror or exc}", file=path, element=element
+        ) from None
     if not stat.S_ISREG(st.st_mode):
-        raise error(f"{what} {path} is {_kind_of(st.st_mode)}, not a regular file; refused",
-                    file=path, element=element)
+        raise error(
+            f"{what} {path} is {_kind_of(st.st_mode)}, not a regular file; refused",
+            file=path,
+            element=element,
+        )
     limit = limit_bytes(kind)
     if st.st_size > limit:
         raise error(
@@ -131,13 +136,17 @@ def read_file(
     except FileNotFoundError:
         raise error(f"{what} not found: {path}", file=path, element=element) from None
     except OSError as exc:
-        raise error(f"cannot read {what} {path}: {exc.strerror or exc}", file=path,
-                    element=element) from None
+        raise error(
+            f"cannot read {what} {path}: {exc.strerror or exc}", file=path, element=element
+        ) from None
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            raise error(f"{what} {path} is {_kind_of(st.st_mode)}, not a regular file; refused",
-                        file=path, element=element)
+            raise error(
+                f"{what} {path} is {_kind_of(st.st_mode)}, not a regular file; refused",
+                file=path,
+                element=element,
+            )
         chunks = []
         total = 0
         while True:
@@ -155,8 +164,9 @@ def read_file(
                 )
         return b"".join(chunks)
     except OSError as exc:
-        raise error(f"cannot read {what} {path}: {exc.strerror or exc}", file=path,
-                    element=element) from None
+        raise error(
+            f"cannot read {what} {path}: {exc.strerror or exc}", file=path, element=element
+        ) from None
     finally:
         os.close(fd)
 
