@@ -20,13 +20,15 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager, redirect_stderr
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from lxml import etree
 
-from .. import xml_repair
+from .. import untrusted, xml_repair
 from ..errors import ConversionError, InputError, URDFError, XacroError
 from ..ir import Note, UrdfDocument
 from ..packages import PackageResolver
+from . import xacro_guard
 
 log = logging.getLogger(__name__)
 
@@ -54,6 +56,9 @@ class XacroConfig:
     """Also search ROS_PACKAGE_PATH and AMENT_PREFIX_PATH."""
     strict: bool = False
     """Repaired XML and substitution args in a plain URDF are errors, not warnings."""
+    trust: bool = False
+    """Run the description's code as stock xacro does (``--trust-xacro``); otherwise every
+    expression is checked (:mod:`urdf2mjcf.passes.xacro_guard`)."""
 
 
 def _needs_xacro(source: Path, data: bytes, args: Mapping[str, str]) -> bool:
@@ -72,12 +77,16 @@ def _needs_xacro(source: Path, data: bytes, args: Mapping[str, str]) -> bool:
 
 
 @contextmanager
-def _patched_find(resolver: PackageResolver) -> Iterator[None]:
-    """Route xacro's ``$(find pkg)`` and ``${find('pkg')}`` to our resolver."""
+def _patched_find(resolver: PackageResolver, found: list[Path] | None = None) -> Iterator[None]:
+    """Route xacro's ``$(find pkg)`` and ``${find('pkg')}`` to our resolver (each
+    folder found is appended to ``found``)."""
     from xacro import substitution_args as sa
 
     def find(pkg: str) -> str:
-        return str(resolver.find(pkg, element=f"$(find {pkg})"))
+        folder = resolver.find(pkg, element=f"$(find {pkg})")
+        if found is not None:
+            found.append(folder)
+        return str(folder)
 
     saved = sa._eval_find, sa._eval_dict.get("find")
     sa._eval_find = find
@@ -95,20 +104,19 @@ def _expand(
     import xacro
 
     chatter = io.StringIO()  # xacro prints its warnings; they belong in the report
-    with _LOCK, _patched_find(resolver), redirect_stderr(chatter):
+    found: list[Path] = []
+    with _LOCK, _patched_find(resolver, found), redirect_stderr(chatter), _yaml_state():
         try:
-            if repaired is None:
-                doc = xacro.process_file(str(source), mappings=dict(cfg.args))
-            else:  # xacro's own steps, fed the repaired bytes instead of the file
-                xacro.init_stacks(str(source))
-                doc = xacro.parse(io.BytesIO(repaired))
-                xacro.process_doc(doc, mappings=dict(cfg.args))
+            with _guarded(source, cfg, found):
+                doc = _process(xacro, source, cfg, repaired)
         except ConversionError:
             raise
         except Exception as exc:  # xacro raises many types; all are bad input here
             where = xacro.filestack[-1] if getattr(xacro, "filestack", None) else source
             where = where or source
-            cause = exc.exc if isinstance(exc, xacro.XacroException) and exc.exc else exc
+            cause = exc
+            while isinstance(cause, xacro.XacroException) and cause.exc:
+                cause = cause.exc  # xacro wraps each level it passes through
             if isinstance(cause, ConversionError):
                 raise cause from None
             if isinstance(exc, xml.parsers.expat.ExpatError):
@@ -127,9 +135,63 @@ def _expand(
     return doc.toxml(encoding="utf-8"), warnings
 
 
+def _process(xacro: Any, source: Path, cfg: XacroConfig, repaired: bytes | None) -> Any:
+    if repaired is None:
+        return xacro.process_file(str(source), mappings=dict(cfg.args))
+    # xacro's own steps, fed the repaired bytes instead of the file
+    xacro.init_stacks(str(source))
+    doc = xacro.parse(io.BytesIO(repaired))
+    xacro.process_doc(doc, mappings=dict(cfg.args))
+    return doc
+
+
+@contextmanager
+def _guarded(source: Path, cfg: XacroConfig, found: list[Path]) -> Iterator[None]:
+    """The expression checks, unless the user trusts the description."""
+    if cfg.trust:
+        yield
+        return
+
+    def roots() -> list[Path]:
+        return _yaml_roots(source, cfg, found)
+
+    with xacro_guard.installed(roots, source):
+        yield
+
+
+def _yaml_roots(source: Path, cfg: XacroConfig, found: list[Path]) -> list[Path]:
+    """Where ``xacro.load_yaml`` may read: the source's own package (nearest ancestor
+    with a package.xml, else the source's folder), the packages given on the command
+    line and every package ``$(find)`` resolved."""
+    here = source.resolve().parent
+    own = next((a for a in (here, *here.parents) if (a / "package.xml").is_file()), here)
+    return [own, *map(Path, cfg.packages.values()), *cfg.package_paths, *found]
+
+
+@contextmanager
+def _yaml_state() -> Iterator[None]:
+    """Stock xacro's load_yaml adds its unit tags (``!degrees``, whose constructor
+    evaluates the scalar as an expression) to yaml.SafeLoader for the whole process:
+    every later safe_load of a recipe would evaluate them. Undo that after each run."""
+    import yaml
+
+    own = yaml.SafeLoader.__dict__.get("yaml_constructors")
+    saved = dict(own) if own is not None else None
+    try:
+        yield
+    finally:
+        current = yaml.SafeLoader.__dict__.get("yaml_constructors")
+        if saved is None:
+            if current is not None:
+                del yaml.SafeLoader.yaml_constructors
+        elif current is not None:
+            current.clear()
+            current.update(saved)
+
+
 def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
     source = Path(source)
-    if not source.is_file():
+    if not source.exists():
         raise InputError("no such file", file=source)
     resolver = PackageResolver(
         source=source,
@@ -138,7 +200,7 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
         use_environment=cfg.use_environment,
         strict=cfg.strict,
     )
-    original = source.read_bytes()
+    original = untrusted.read_file(source, "description", error=InputError)
     data, fixes = xml_repair.repair(original)
     notes = [_liberty(cfg, source, element, message, InputError) for element, message in fixes]
     if _needs_xacro(source, data, cfg.args):
