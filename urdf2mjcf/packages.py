@@ -49,7 +49,8 @@ from functools import cached_property
 from pathlib import Path
 from urllib.parse import unquote
 
-from .errors import PackageNotFoundError
+from . import untrusted
+from .errors import ConversionError, PackageNotFoundError
 
 _NAME_RE = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
 
@@ -60,9 +61,11 @@ DEEP_SEARCH_MAX_DIRS = 20_000
 
 
 def _package_xml_name(folder: Path) -> str | None:
+    # a regular file within the description limit: a package.xml that is a FIFO or
+    # /dev/zero (found while searching folders) is skipped, never opened
     try:
-        text = (folder / "package.xml").read_bytes()
-    except OSError:
+        text = untrusted.read_file(folder / "package.xml", "description")
+    except ConversionError:
         return None
     match = _NAME_RE.search(text)
     return match.group(1).decode() if match else None

@@ -21,6 +21,7 @@ from typing import Any
 
 import yaml
 
+from . import untrusted
 from .errors import ConversionError, InputError
 
 Key = tuple[str, ...]
@@ -75,7 +76,9 @@ class Source:
         the error's file and element stay a path and a key)."""
         line = self.line(key) if key else None
         text = f"{message} (line {line})" if line else message
-        return self.error(text, file=self.file or "input", element=key or None)
+        # the key may be a stranger's (a mapping key of any length): shown shortened
+        shown = _quote(key, 120) if key else None
+        return self.error(text, file=self.file or "input", element=shown)
 
     def number(self, value: Any, key: str) -> float:
         """A finite float, or an error naming the file and the key."""
@@ -83,10 +86,10 @@ class Source:
             raise self.fail(key, f"'{value}' is not a number")
         try:
             x = float(value)
-        except (TypeError, ValueError):
-            raise self.fail(key, f"'{value}' is not a number") from None
+        except (TypeError, ValueError, OverflowError):
+            raise self.fail(key, f"'{_quote(value)}' is not a number") from None
         if not math.isfinite(x):
-            raise self.fail(key, f"'{value}' is not finite")
+            raise self.fail(key, f"'{_quote(value)}' is not finite")
         return x
 
     def mapping(self, value: Any, key: str, what: str = "a mapping of keys to values") -> dict:
@@ -94,7 +97,7 @@ class Source:
         if value is None:
             return {}
         if not isinstance(value, Mapping):
-            raise self.fail(key, f"'{value}' is not {what}")
+            raise self.fail(key, f"'{_quote(value)}' is not {what}")
         return {str(k): v for k, v in value.items()}
 
     def known(self, data: Mapping, valid: Iterable[str], key: str = "") -> None:
@@ -102,7 +105,7 @@ class Source:
         valid = list(valid)
         for name in data:
             if str(name) not in valid:
-                where = f"{key}.{name}" if key else str(name)
+                where = f"{key}.{_quote(name, 60)}" if key else _quote(name, 60)
                 raise self.fail(where, f"unknown key; valid: {', '.join(valid) or 'none'}")
 
     def text(self, value: Any, key: str, *, required: bool = False) -> str | None:
@@ -111,16 +114,31 @@ class Source:
                 raise self.fail(key, "is required")
             return None
         if not isinstance(value, str):
-            raise self.fail(key, f"'{value}' is not text")
+            raise self.fail(key, f"'{_quote(value)}' is not text")
         return value
 
 
+def _quote(value: Any, limit: int = 80) -> str:
+    """What an error line may show of a value read from a file: one short line
+    (a file that is not YAML parses as one long string; it is not echoed whole)."""
+    return untrusted.excerpt(str(value), limit)
+
+
 def parse(text: str) -> tuple[Any, dict[Key, int]]:
-    """YAML text's data and the line of each key; yaml.YAMLError when it is not YAML."""
+    """YAML text's data and the line of each key; yaml.YAMLError when it is not YAML,
+    or when its aliases expand it past :data:`urdf2mjcf.untrusted.YAML_MAX_NODES`
+    nodes (a 'billion laughs' document: refused before it is built)."""
     loader = yaml.SafeLoader(text)
     try:
         node = loader.get_single_node()
+        if node is not None:
+            try:
+                untrusted.check_yaml_size(node)
+            except untrusted.YamlBombError as exc:
+                raise yaml.YAMLError(str(exc)) from None
         data = loader.construct_document(node) if node is not None else None
+    except RecursionError:  # PyYAML composes and constructs recursively
+        raise yaml.YAMLError("nested too deeply") from None
     finally:
         loader.dispose()
     lines: dict[Key, int] = {}
@@ -133,10 +151,13 @@ def load(
 ) -> tuple[Any, Source]:
     """A YAML file's data and its :class:`Source`; an ``error`` naming the file (and the
     line) when it is missing, unreadable, not text or not YAML."""
+    # regular files only, at most the yaml size limit: a FIFO or /dev/zero is refused
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise error(f"cannot read {what}: {exc.strerror}", file=path) from None
+        raw = untrusted.read_file(path, "yaml", error=error, what="file")
+    except ConversionError as exc:
+        raise error(f"cannot read {what}: {exc.detail}", file=path) from None
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise error(f"cannot read {what}: not a text file", file=path) from None
     try:
@@ -144,6 +165,8 @@ def load(
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else None
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise error(f"{what} is not valid YAML: {problem}", file=path, element=where) from None
+        problem = getattr(exc, "problem", None) or (str(exc).splitlines() or ["?"])[0]
+        raise error(
+            f"{what} is not valid YAML: {_quote(problem)}", file=path, element=where
+        ) from None
     return data, Source(path, lines, error=error)

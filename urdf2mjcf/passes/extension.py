@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import copy
 import logging
+import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
@@ -37,6 +38,7 @@ from pathlib import Path
 
 from lxml import etree
 
+from .. import untrusted
 from ..assets import content_name
 from ..errors import MeshError, URDFError
 from ..fmt import fmt_vec
@@ -120,6 +122,35 @@ COMPILER_FIXED = {
     ),
 }
 """Compiler attributes the generated model depends on: (required value, why)."""
+
+OPTION_RANGES: dict[tuple[str, str], tuple[float, float, bool]] = {
+    ("option", "timestep"): (0.0, 1.0, False),
+    ("option", "iterations"): (1, 10_000, True),
+    ("option", "ls_iterations"): (1, 10_000, True),
+    ("option", "noslip_iterations"): (0, 10_000, True),
+    ("option", "ccd_iterations"): (1, 10_000, True),
+    ("option", "sdf_iterations"): (1, 10_000, True),
+    ("option", "sdf_initpoints"): (1, 10_000, True),
+    ("global", "offwidth"): (1, 16_384, True),
+    ("global", "offheight"): (1, 16_384, True),
+    ("quality", "shadowsize"): (0, 16_384, True),
+    ("quality", "offsamples"): (0, 64, True),
+    ("quality", "numslices"): (1, 10_000, True),
+    ("quality", "numstacks"): (1, 10_000, True),
+    ("quality", "numquads"): (1, 10_000, True),
+}
+"""(element, attribute) of a merged section -> (low, high, integer). ``timestep`` is
+in (0, 1] s (MuJoCo takes any positive one; validation steps at most
+:attr:`~urdf2mjcf.passes.validate.ValidateConfig.max_steps` times); iteration
+counts and render buffer sizes are bounded (each costs time or memory in
+proportion). Every other number in ``compiler``, ``option``, ``size``, ``visual``
+and ``statistic`` must be finite and at most :data:`MAX_MAGNITUDE` in size."""
+
+MAX_MAGNITUDE = 1e12
+"""Largest magnitude of a number in a merged section (gravity, tolerances, sizes)."""
+
+MAX_MEMORY = 16 * 2**30
+"""Largest ``<size memory>`` (bytes): MuJoCo allocates it for every ``MjData``."""
 
 _PLURAL = {"body": "bodies", "equality": "equality constraints", "key": "keyframes"}
 
@@ -212,6 +243,7 @@ def _apply(ctx: _Context, text: str) -> None:
     etree.cleanup_namespaces(src)  # xacro's xmlns must not follow the children
     if src.attrib:
         raise ctx.error(f"takes no attributes; found {_names(src.attrib)}", "mujoco")
+    _check_file_readers(ctx, src)
     applied: list[str] = []
     for child in _elements(src):
         tag = child.tag
@@ -249,6 +281,84 @@ def _apply(ctx: _Context, text: str) -> None:
     message = "applied " + (", ".join(applied) if applied else "nothing (empty)")
     ctx.notes.append(Note("info", "mujoco", message))
     log.debug("%s: mujoco: %s", ctx.source, message)
+
+
+def _check_file_readers(ctx: _Context, src: etree._Element) -> None:
+    """Refuse an element that would make MuJoCo open a file itself (``<include>``,
+    ``<flexcomp file=...>``): only ``<asset>`` files are read, by us (regular files
+    within the size limit, see :func:`_copy_files`), and copied beside the output."""
+    for el in src.iter():
+        if not isinstance(el.tag, str) or el is src:
+            continue
+        parent = el.getparent()
+        if parent is src and el.tag not in ELEMENTS:
+            continue  # an unknown top-level element: _apply lists the valid ones
+        ours = parent is not None and (
+            (parent.tag == "asset" and parent.getparent() is src)
+            or (parent.tag == "override" and OVERRIDES.get(el.tag, ("",))[0] == "asset")
+        )
+        named = [k for k in FILE_ATTRS if el.get(k) is not None]
+        if el.tag == "include" or (named and not ours):
+            shown = etree.QName(el).localname
+            raise ctx.error(
+                f"<{shown}> would make MuJoCo read a file itself; only files of <asset> "
+                "children are read (and copied beside the output)",
+                f"mujoco {_label(el)}",
+            )
+
+
+def _check_numbers(ctx: _Context, src: etree._Element, origin: str) -> None:
+    """Every number in a merged section (``option``, ``compiler``, ...) finite and in
+    range (see :data:`OPTION_RANGES`); an error naming the element and attribute."""
+    for el in src.iter():
+        if not isinstance(el.tag, str):
+            continue
+        where = origin if el is src else f"{origin} {el.tag}"
+        for key, value in el.items():
+            if key == "memory" and el.tag == "size":
+                _check_memory(ctx, value, where)
+                continue
+            words = value.split()
+            try:
+                numbers = [float(w) for w in words]
+            except ValueError:
+                continue  # a keyword ("elliptic", "enable"): MuJoCo checks it
+            if not numbers:
+                continue
+            low, high, integer = OPTION_RANGES.get(
+                (el.tag, key), (-MAX_MAGNITUDE, MAX_MAGNITUDE, False)
+            )
+            for x in numbers:
+                bad = not math.isfinite(x) or not low <= x <= high
+                if (el.tag, key) == ("option", "timestep"):
+                    bad = bad or x <= 0.0
+                if integer and not bad:
+                    bad = x != int(x)
+                if bad:
+                    shown = untrusted.excerpt(value, 40)
+                    kind = "an integer" if integer else "a finite number"
+                    lo = "above" if (el.tag, key) == ("option", "timestep") else "from"
+                    raise ctx.error(
+                        f'{key}="{shown}" is out of range; expected {kind} {lo} {low:g} '
+                        f"to {high:g}",
+                        where,
+                    )
+
+
+def _check_memory(ctx: _Context, value: str, where: str) -> None:
+    """``<size memory>``: ``-1`` or a byte count with an optional K, M, G suffix, at most
+    :data:`MAX_MEMORY`."""
+    text = value.strip()
+    units = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40, "P": 2**50, "E": 2**60}
+    match = re.fullmatch(r"(-?\d{1,20})\s*([KMGTPE]?)", text, flags=re.IGNORECASE)
+    if text == "-1":
+        return
+    if match is None or int(match.group(1)) * units[match.group(2).upper()] > MAX_MEMORY:
+        raise ctx.error(
+            f'memory="{untrusted.excerpt(value, 40)}" is out of range; expected -1 or '
+            f"at most {MAX_MEMORY // 2**30}G",
+            where,
+        )
 
 
 def _elements(el: etree._Element) -> list[etree._Element]:
@@ -302,6 +412,7 @@ def _merge_tree(ctx: _Context, target: etree._Element, src: etree._Element, orig
 
 def _merge_singleton(ctx: _Context, src: etree._Element) -> None:
     origin = f"mujoco {src.tag}"
+    _check_numbers(ctx, src, origin)
     if src.tag == "compiler":
         kept = []
         for key, value in src.items():
@@ -408,12 +519,12 @@ def _copy_files(ctx: _Context, el: etree._Element, origin: str) -> None:
         if not uri:
             continue
         path = ctx.resolver.resolve(uri, element=origin)
+        # a regular file within its size limit: a FIFO would block, /dev/zero fill memory
+        kind = "texture" if el.tag in ("texture", "hfield") else "mesh"
         try:
-            data = path.read_bytes()
-        except FileNotFoundError:
-            raise MeshError(f"file not found: {path}", file=ctx.source, element=origin) from None
-        except OSError as exc:
-            raise MeshError(f"cannot read {path}: {exc}", file=ctx.source, element=origin) from None
+            data = untrusted.read_file(path, kind, error=MeshError, what="file")
+        except MeshError as exc:
+            raise MeshError(exc.detail, file=ctx.source, element=origin) from None
         if data.startswith(LFS_MAGIC):
             raise MeshError(
                 f"{path} is a Git LFS pointer, not a file; run 'git lfs pull' in its repository",

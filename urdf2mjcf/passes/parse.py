@@ -47,9 +47,17 @@ from ..ir import (
     Visual,
 )
 from ..packages import PackageResolver
+from ..untrusted import excerpt
 
 EXTENSION_TAGS = ("ros2_control", "transmission", "gazebo", "mujoco")
 SHAPES = ("box", "cylinder", "sphere", "capsule", "mesh", "plane")
+MAX_MAGNITUDE = 1e12
+"""Largest magnitude of a number in a URDF (a length, mass, inertia, gain, colour):
+far beyond any robot, far below what overflows the arithmetic of later passes
+(1e300 squared is inf). A bigger one is an error naming the element."""
+LIMIT_MAGNITUDE = 1e30
+"""Joint ``<limit>`` values may be larger: ``upper="1e+16"`` is a common way to say
+'unlimited' (example-robot-data's iris)."""
 JOINT_ALIASES = {"ball": "spherical"}
 """Joint type spellings other tools accept, read as ours (with a warning)."""
 
@@ -88,35 +96,46 @@ class _Reader:
         n: int,
         where: str,
         default: tuple[float, ...] | None = None,
+        limit: float = MAX_MAGNITUDE,
     ) -> tuple[float, ...]:
         text = el.get(attr)
         if text is None:
             if default is None:
                 raise self.fail(where, f"<{el.tag}> is missing attribute '{attr}'")
             return default
+        shown = excerpt(text, 60)  # the attribute is a stranger's: quoted short
         try:
             values = tuple(float(v) for v in text.split())
         except ValueError:
-            raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not a list of numbers") from None
+            raise self.fail(
+                where, f"<{el.tag} {attr}='{shown}'> is not a list of numbers"
+            ) from None
         if len(values) > n > 1:  # PyBullet and Gazebo read the first n; so do we
             self.liberty(
                 f"{where} <{el.tag} {attr}>",
-                f"'{text}' has {len(values)} numbers where {n} are needed; the first {n} used",
+                f"'{shown}' has {len(values)} numbers where {n} are needed; the first {n} used",
             )
             values = values[:n]
         if len(values) != n:
             raise self.fail(
-                where, f"<{el.tag} {attr}='{text}'> needs {n} numbers, got {len(values)}"
+                where, f"<{el.tag} {attr}='{shown}'> needs {n} numbers, got {len(values)}"
             )
         if not all(math.isfinite(v) for v in values):
-            raise self.fail(where, f"<{el.tag} {attr}='{text}'> is not finite")
+            raise self.fail(where, f"<{el.tag} {attr}='{shown}'> is not finite")
+        if any(abs(v) > limit for v in values):
+            raise self.fail(
+                where,
+                f"<{el.tag} {attr}='{shown}'> is out of range (at most {limit:g} in magnitude)",
+            )
         return values
 
-    def optional(self, el: etree._Element, attr: str, where: str) -> float | None:
+    def optional(
+        self, el: etree._Element, attr: str, where: str, limit: float = MAX_MAGNITUDE
+    ) -> float | None:
         """An optional number: None when the attribute is absent."""
         if el.get(attr) is None:
             return None
-        return self.floats(el, attr, 1, where)[0]
+        return self.floats(el, attr, 1, where, limit=limit)[0]
 
     def scalar(
         self, el: etree._Element, attr: str, where: str, default: float | None = None
@@ -267,7 +286,8 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
     elif jtype == "spherical":
         r.liberty(where, "type 'spherical' is not in urdfdom's URDF; written as a MuJoCo ball")
     if jtype not in JOINT_TYPES:
-        raise r.fail(where, f"has type '{jtype}'; supported: {', '.join(JOINT_TYPES)}")
+        shown = excerpt(str(jtype), 40)
+        raise r.fail(where, f"has type '{shown}'; supported: {', '.join(JOINT_TYPES)}")
     parent, child = el.find("parent"), el.find("child")
     if parent is None or not parent.get("link") or child is None or not child.get("link"):
         raise r.fail(where, "needs <parent link=...> and <child link=...>")
@@ -283,10 +303,10 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
     lel = el.find("limit")
     if lel is not None:
         limit = Limit(
-            lower=r.optional(lel, "lower", where),
-            upper=r.optional(lel, "upper", where),
-            effort=r.optional(lel, "effort", where),
-            velocity=r.optional(lel, "velocity", where),
+            lower=r.optional(lel, "lower", where, LIMIT_MAGNITUDE),
+            upper=r.optional(lel, "upper", where, LIMIT_MAGNITUDE),
+            effort=r.optional(lel, "effort", where, LIMIT_MAGNITUDE),
+            velocity=r.optional(lel, "velocity", where, LIMIT_MAGNITUDE),
         )
         lo, hi = limit.lower or 0.0, limit.upper or 0.0  # URDF's defaults
         if jtype in ("revolute", "prismatic") and lo > hi:

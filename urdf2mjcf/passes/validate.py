@@ -11,6 +11,7 @@ first and the last step only (see :func:`run`).
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from typing import Any
 from ..errors import ValidationError
 from ..mjmodel import LOCK as _LOCK
 from ..mjmodel import compile_xml, files_named, home_data, without_visuals
+from ..untrusted import check_regular
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +30,11 @@ log = logging.getLogger(__name__)
 class ValidateConfig:
     enabled: bool = True
     duration: float = 1.0
-    """Seconds of simulated time to step."""
+    """Seconds of simulated time to step (at most :attr:`max_steps` steps)."""
+    max_steps: int = 10_000
+    """Most steps validation takes, whatever the model's timestep: a timestep below
+    ``duration / max_steps`` (0.1 ms) simulates less than ``duration`` (said in a
+    debug log), so a tiny ``<option timestep>`` cannot make validation run forever."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +84,8 @@ def run(
         twin: _Stepper | None = None
         try:
             try:
-                if files is None:
+                if files is None:  # MuJoCo opens it (and what it names) itself
+                    check_regular(xml_path, "description", error=ValidationError, what="model")
                     m = mujoco.MjModel.from_xml_path(str(xml_path))
                 else:
                     written = {name: (xml_path.parent / name).read_bytes() for name in files}
@@ -128,7 +135,7 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
     import mujoco
 
     d = home_data(m)
-    steps = int(round(cfg.duration / m.opt.timestep))
+    steps = step_count(cfg, float(m.opt.timestep))
     # Sensors read the state and never change it, so they are evaluated in the
     # first and the last step (one MuJoCo cannot evaluate still fails), not in
     # every step between: a lidar's rangefinders (1636 rays on tiago_pro) cost
@@ -146,6 +153,22 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
     finally:
         m.opt.disableflags = flags
     return d, steps
+
+
+def step_count(cfg: ValidateConfig, timestep: float) -> int:
+    """Steps that simulate ``cfg.duration`` at ``timestep``, at most ``cfg.max_steps``
+    (and at least one)."""
+    wanted = cfg.duration / timestep if timestep > 0 and math.isfinite(timestep) else math.inf
+    if not wanted <= cfg.max_steps:  # NaN included
+        log.debug(
+            "timestep %g s: validation steps %d times (%g s), not %g s",
+            timestep,
+            cfg.max_steps,
+            cfg.max_steps * timestep if math.isfinite(timestep) else 0.0,
+            cfg.duration,
+        )
+        return cfg.max_steps
+    return max(1, int(round(wanted)))
 
 
 def _physics_files(written: dict[str, bytes]) -> dict[str, bytes] | None:

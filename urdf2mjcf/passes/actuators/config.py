@@ -55,7 +55,7 @@ from typing import Any
 
 import yaml
 
-from ... import schema
+from ... import schema, untrusted
 from ...errors import InputError
 
 ACTUATOR_TYPES = ("position", "velocity", "motor", "none")
@@ -71,6 +71,9 @@ DESIGN_KEYS = (
     "drift_tolerance",
 )
 _SECTIONS = ("defaults", "classes", "joints", "gravcomp")
+MAX_MAGNITUDE = 1e12
+"""Largest magnitude of any number in the file (gains, ranges, armature): far above
+any real actuator (kp of 1e12 N m/rad), far below what overflows MuJoCo's arithmetic."""
 
 
 @dataclass(frozen=True)
@@ -118,10 +121,13 @@ class ActuatorFile:
 
 def load(path: Path) -> ActuatorFile:
     """Read and validate an actuator file."""
+    # regular files only, within the yaml size limit (a FIFO would block, /dev/zero fill memory)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot read actuator file: {exc.strerror or exc}", file=path) from None
+        raw = untrusted.read_file(path, "yaml", what="file")
+    except InputError as exc:
+        raise InputError(f"cannot read actuator file: {exc.detail}", file=path) from None
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError("actuator file is not UTF-8 text", file=path) from None
     return parse(text, Path(path))
@@ -135,7 +141,8 @@ def parse(text: str, path: Path) -> ActuatorFile:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc)
-        raise InputError(f"not valid YAML{where}: {problem}", file=path) from None
+        shown = untrusted.excerpt(problem)
+        raise InputError(f"not valid YAML{where}: {shown}", file=path) from None
     if data is None:
         return ActuatorFile(path)
     r = _Reader(path, lines)
@@ -158,9 +165,9 @@ def parse(text: str, path: Path) -> ActuatorFile:
         spec = r.spec(body, f"joints: {pattern}", allow_class=True)
         if spec.actuator_class is not None:
             if spec.actuator_class not in classes:
-                known = ", ".join(sorted(classes)) or "none defined"
+                known = untrusted.excerpt(", ".join(sorted(classes)), 120) or "none defined"
                 raise r.fail(
-                    f"unknown class {spec.actuator_class!r} (classes: {known})",
+                    f"unknown class {_show(spec.actuator_class)} (classes: {known})",
                     f"joints: {pattern}: class",
                 )
             spec = spec.over(classes[spec.actuator_class])
@@ -187,26 +194,37 @@ class _Reader:
             raise self.fail(f"expected a mapping, got {_kind(value)}", where)
         for key in value:
             if not isinstance(key, (str, int, float)) or isinstance(key, bool):
-                raise self.fail(f"key {key!r} must be a name", where)
+                raise self.fail(f"key {_show(key)} must be a name", where)
         return {str(k): v for k, v in value.items()}
 
     def only(self, value: dict, allowed: tuple[str, ...], where: str) -> None:
         for key in value:
             if key not in allowed:
-                raise self.fail(f"unknown key {key!r}; valid keys: {', '.join(allowed)}", where)
+                raise self.fail(
+                    f"unknown key {_show(key)}; valid keys: {', '.join(allowed)}", where
+                )
 
     def real(self, value: Any, where: str) -> float:
-        """A finite number of any sign (strings such as ``1e5`` included)."""
+        """A finite number of any sign, at most :data:`MAX_MAGNITUDE` (strings such as
+        ``1e5`` included)."""
         if isinstance(value, str):
             try:
                 value = float(value)
             except ValueError:
-                raise self.fail(f"expected a number, got {value!r}", where) from None
+                raise self.fail(f"expected a number, got {_show(value)}", where) from None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(f"expected a number, got {_kind(value)}", where)
-        if not math.isfinite(value):
-            raise self.fail(f"expected a finite number, got {value!r}", where)
-        return float(value)
+        try:
+            x = float(value)
+        except OverflowError:  # an int of 400 digits
+            x = math.inf
+        if not math.isfinite(x):
+            raise self.fail(f"expected a finite number, got {_show(value)}", where)
+        if abs(x) > MAX_MAGNITUDE:
+            raise self.fail(
+                f"{x:g} is out of range (at most {MAX_MAGNITUDE:g} in magnitude)", where
+            )
+        return x
 
     def number(self, value: Any, where: str, *, positive: bool = False) -> float:
         """A finite number >= 0 (> 0 when ``positive``)."""
@@ -219,7 +237,7 @@ class _Reader:
 
     def pair(self, value: Any, where: str) -> tuple[float, float]:
         if not isinstance(value, (list, tuple)) or len(value) != 2:
-            raise self.fail(f"expected [lo, hi], got {value!r}", where)
+            raise self.fail(f"expected [lo, hi], got {_show(value)}", where)
         lo, hi = (self.real(v, where) for v in value)
         if not lo < hi:
             raise self.fail(f"expected lo < hi, got [{lo!r}, {hi!r}]", where)
@@ -240,11 +258,11 @@ class _Reader:
                 kind = _TYPE_ALIASES.get(str(value), str(value))
                 if kind not in ACTUATOR_TYPES or not isinstance(value, str):
                     valid = ", ".join((*ACTUATOR_TYPES, *_TYPE_ALIASES))
-                    raise self.fail(f"unknown type {value!r}; valid: {valid}", at)
+                    raise self.fail(f"unknown type {_show(value)}; valid: {valid}", at)
                 values["type"] = kind
             elif key == "class":
                 if not isinstance(value, str) or not value:
-                    raise self.fail(f"expected a class name, got {value!r}", at)
+                    raise self.fail(f"expected a class name, got {_show(value)}", at)
                 values["actuator_class"] = value
             elif key == "forcerange":
                 if isinstance(value, (list, tuple)):
@@ -270,7 +288,7 @@ class _Reader:
             out = []
             for item in value:
                 if not isinstance(item, str) or not item:
-                    raise self.fail(f"expected link-name patterns, got {item!r}", where)
+                    raise self.fail(f"expected link-name patterns, got {_show(item)}", where)
                 out.append((item, 1.0))
             return tuple(out)
         if isinstance(value, dict):
@@ -295,4 +313,9 @@ def _kind(value: Any) -> str:
         return "a mapping"
     if isinstance(value, (list, tuple)):
         return "a list"
-    return repr(value)
+    return _show(value)
+
+
+def _show(value: Any) -> str:
+    """A value from the file as an error line may quote it: short, one line, printable."""
+    return untrusted.excerpt(repr(value), 60)

@@ -1,0 +1,129 @@
+"""Checked number types for command-line options.
+
+A number a user types is untrusted input like any file: ``nan``, ``inf`` and
+``1e300`` parse as floats, and a negative count parses as an int. These click
+parameter types refuse anything outside a documented range, so a bad value is
+one ``error:`` line naming the option (click's usage error, exit 2), never a
+crash deeper in. Every message states the valid range.
+
+API:
+
+- ``FiniteFloat(low, high, low_open=False)``: a finite float in ``[low, high]``
+  (``(low, high]`` with ``low_open``).
+- ``BoundedInt(low, high)``: an integer in ``[low, high]``.
+- ``KeyedFloat(type, key_name)``: ``KEY=NUMBER`` with the number checked by a
+  ``FiniteFloat``; converts to ``(key, value)``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import click
+
+from .untrusted import excerpt
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+class FiniteFloat(click.ParamType):
+    """A finite float within ``[low, high]`` (``(low, high]`` with ``low_open``)."""
+
+    name = "number"
+
+    def __init__(self, low: float, high: float, low_open: bool = False) -> None:
+        if not low < high:
+            raise ValueError("low must be below high")
+        self.low = low
+        self.high = high
+        self.low_open = low_open
+
+    @property
+    def range_text(self) -> str:
+        """The valid range in words, e.g. 'above 0 and at most 1e+06'."""
+        lo = f"above {_fmt(self.low)}" if self.low_open else f"at least {_fmt(self.low)}"
+        return f"a finite number {lo} and at most {_fmt(self.high)}"
+
+    def check(self, value: Any) -> float | str:
+        """``value`` as a float, or the reason it is refused."""
+        if isinstance(value, bool):
+            return f"'{value}' is not a number; expected {self.range_text}"
+        try:
+            x = float(value)
+        except (TypeError, ValueError, OverflowError):
+            return f"'{excerpt(str(value), 40)}' is not a number; expected {self.range_text}"
+        if not math.isfinite(x):
+            return f"'{excerpt(str(value), 40)}' is not finite; expected {self.range_text}"
+        too_low = x <= self.low if self.low_open else x < self.low
+        if too_low or x > self.high:
+            return f"{excerpt(str(value), 40)} is out of range; expected {self.range_text}"
+        return x
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        result = self.check(value)
+        if isinstance(result, str):
+            self.fail(result, param, ctx)
+        return result
+
+    def __repr__(self) -> str:
+        return f"FiniteFloat({self.low!r}, {self.high!r}, low_open={self.low_open!r})"
+
+
+class BoundedInt(click.ParamType):
+    """An integer within ``[low, high]`` (a float or ``nan`` is refused)."""
+
+    name = "integer"
+
+    def __init__(self, low: int, high: int) -> None:
+        if not low <= high:
+            raise ValueError("low must not be above high")
+        self.low = low
+        self.high = high
+
+    @property
+    def range_text(self) -> str:
+        return f"an integer from {self.low} to {self.high}"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, int) and not isinstance(value, bool):
+            n = value
+        else:
+            text = str(value).strip()
+            # int() alone would accept '1_000' and spend time on a 100,000-digit string
+            if len(text) > 24 or not text.lstrip("+-").isdigit():
+                self.fail(
+                    f"'{excerpt(text, 40)}' is not an integer; expected {self.range_text}",
+                    param,
+                    ctx,
+                )
+            n = int(text)
+        if not self.low <= n <= self.high:
+            self.fail(f"{n} is out of range; expected {self.range_text}", param, ctx)
+        return n
+
+    def __repr__(self) -> str:
+        return f"BoundedInt({self.low!r}, {self.high!r})"
+
+
+class KeyedFloat(click.ParamType):
+    """``KEY=NUMBER``, the number checked by ``number``; converts to ``(key, value)``."""
+
+    name = "key=number"
+
+    def __init__(self, number: FiniteFloat, key_name: str = "KEY") -> None:
+        self.number = number
+        self.key_name = key_name
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        key, found, raw = str(value).partition("=")
+        if not found or not key:
+            self.fail(f"'{excerpt(str(value), 40)}' is not {self.key_name}=NUMBER", param, ctx)
+        result = self.number.check(raw)
+        if isinstance(result, str):
+            self.fail(f"{excerpt(key, 40)}: {result}", param, ctx)
+        return (key, result)
