@@ -206,7 +206,7 @@ def test_a_failed_conversion_leaves_an_existing_folder_as_it_was(tmp_path):
     src = tmp_path / "unstable.urdf"
     src.write_text(
         f'<robot name="r">{LINK.format(n="a")}'
-        '<mujoco><option gravity="0 0 -1e30"/></mujoco></robot>'
+        '<mujoco><option gravity="0 0 -1e11"/></mujoco></robot>'
     )
     out = user_folder(tmp_path / "DIR")
     (out / "robot.xml").write_text("my robot")

@@ -16,37 +16,150 @@ the files we did not write.
 from __future__ import annotations
 
 import json
+import logging
 import os
+import re
 import secrets
 import shutil
-import tempfile
+import socket
+import sys
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .errors import OutputError
 
+log = logging.getLogger(__name__)
+
+MARKER = ".urdf2mjcf-staging"
+"""In every staging and trash folder we make: which process made it (JSON)."""
+JOURNAL = ".urdf2mjcf-journal"
+"""In a trash folder: what the install moved, so that a killed one can be undone."""
+_BACKUP = ".urdf2mjcf-old"
+"""In a staging folder of :func:`write_atomic`: the files it replaced, until it is done."""
+
+# -- our marks: which folders and files beside an output are ours, and stale ----------------
+
+
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (clock ticks since boot, Linux), or None: with the
+    pid it names one process, never a later one that reuses the number."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat.rsplit(")", 1)[-1].split()
+    return fields[19] if len(fields) > 19 and fields[0] != "Z" else None
+
+
+def _alive(pid: Any, start: Any = None) -> bool:
+    """Whether process ``pid`` (started at ``start``, when known) still runs here."""
+    if not isinstance(pid, int) or pid <= 0:
+        return False
+    if pid == os.getpid():
+        return True
+    if Path("/proc/self/stat").exists():  # Linux: a zombie or a reused pid is no owner
+        now = _start_time(pid)
+        return now is not None and (start is None or str(start) == now)
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _mark(folder: Path, kind: str) -> None:
+    """Write our :data:`MARKER` into a folder we just made."""
+    data = {
+        "pid": os.getpid(),
+        "start": _start_time(os.getpid()),
+        "host": socket.gethostname(),
+        "kind": kind,
+        "command": sys.argv,
+    }
+    (folder / MARKER).write_text(json.dumps(data) + "\n")
+
+
+def _stale_mark(folder: Path) -> dict | None:
+    """Our marker in ``folder`` when the process that wrote it is gone (on this host)."""
+    marker = folder / MARKER
+    if not marker.is_file() or marker.is_symlink():
+        return None
+    data = _json_object(marker)
+    if data is None or data.get("host") != socket.gethostname():
+        return None
+    return None if _alive(data.get("pid"), data.get("start")) else data
+
+
+def _hex_name(prefix: str) -> re.Pattern[str]:
+    return re.compile(re.escape(prefix) + r"[0-9a-f]{12}")
+
+
+def _tmp_name(prefix: str) -> re.Pattern[str]:
+    return re.compile(re.escape(prefix) + r"(\d+)\.[0-9a-f]{12}\.tmp")
+
+
+def clean_stale(parent: Path, name: str) -> None:
+    """Remove what a killed run of ours left beside ``parent / name``: its staging and
+    trash folders (our marker, its process gone; a trash folder's install is undone
+    first), an empty one made the instant before the marker, and temporary files whose
+    name holds a process id that is gone. Anything else is someone's and stays."""
+    try:
+        entries = sorted(parent.iterdir())
+    except OSError:
+        return
+    stage, old, tmp = _hex_name(f".{name}-"), _hex_name(f".{name}-old-"), _tmp_name(f".{name}.")
+    ours = _hex_name(".urdf2mjcf-")
+    for entry in entries:
+        if entry.is_symlink():
+            continue
+        if entry.is_dir() and any(p.fullmatch(entry.name) for p in (stage, old, ours)):
+            _clean_folder(entry, parent / name)
+        elif (m := tmp.fullmatch(entry.name)) and entry.is_file() and not _alive(int(m[1])):
+            log.info("removing %s, left by a run that was killed", entry)
+            entry.unlink(missing_ok=True)
+
+
+def _clean_folder(folder: Path, output: Path) -> None:
+    if not any(folder.iterdir()):  # made, killed before its marker: empty, nothing to lose
+        folder.rmdir()
+        return
+    data = _stale_mark(folder)
+    if data is None:
+        return
+    if data.get("kind") == "trash" and not _undo_install(folder, output):
+        return
+    log.info("removing %s, left by a run that was killed", folder)
+    shutil.rmtree(folder, ignore_errors=True)
+
 
 def check_target(output: Path, overwrite: bool, extra: tuple[str, ...] = ()) -> None:
-    """Fail early when we would overwrite a file the user did not let us replace."""
+    """Fail early when we would overwrite a file the user did not let us replace (a
+    symlink, even a dangling one, is a file there)."""
     if output.suffix.lower() != ".xml":
         raise OutputError("output file must end in .xml", file=output)
-    if output.exists() and output.is_dir():
+    if output.is_dir():
         raise OutputError("output is a directory; give the .xml file to write", file=output)
     for path in (output, *(output.parent / name for name in extra)):
-        if path.exists() and not overwrite:
+        if os.path.lexists(path) and not overwrite:
             raise OutputError("already exists; pass --overwrite to replace it", file=path)
+    clean_stale(output.parent, "urdf2mjcf")
 
 
-def _temp_folder(parent: Path, prefix: str, made: list[Path]) -> Path:
-    """Make a new, uniquely named folder in ``parent``, its name put in ``made``
-    before it exists: an interrupt (Ctrl-C, SIGTERM) landing the instant after the
-    folder is made still leaves the caller its name to remove (``tempfile.mkdtemp``
-    returns it only afterwards, and a SIGTERM sent on seeing the folder lands there)."""
+def _temp_folder(parent: Path, prefix: str, made: list[Path], kind: str = "staging") -> Path:
+    """Make a new, uniquely named folder in ``parent`` holding our :data:`MARKER`, its
+    name put in ``made`` before it exists: an interrupt (Ctrl-C, SIGTERM) landing the
+    instant after the folder is made still leaves the caller its name to remove
+    (``tempfile.mkdtemp`` returns it only afterwards, and a SIGTERM sent on seeing the
+    folder lands there). A kill -9 before the marker leaves an empty folder, which
+    :func:`clean_stale` removes."""
     while True:
         path = parent / f"{prefix}{secrets.token_hex(6)}"
-        if path.exists():  # someone's: never put in ``made``, not even for an instant
+        if os.path.lexists(path):  # someone's: never put in ``made``, not even for an instant
             continue
         made.append(path)
         try:
@@ -54,6 +167,7 @@ def _temp_folder(parent: Path, prefix: str, made: list[Path]) -> Path:
         except FileExistsError:  # another process took the name this instant: not ours
             made.remove(path)
             continue
+        _mark(path, kind)
         return path
 
 
@@ -64,7 +178,7 @@ def _remove_all(folders: Sequence[Path]) -> None:
 
 def _make_parents(folder: Path) -> list[Path]:
     """Create ``folder`` and its missing parents; the ones created, deepest first."""
-    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    missing = [p for p in (folder, *folder.parents) if not os.path.lexists(p)]
     folder.mkdir(parents=True, exist_ok=True)
     return missing
 
@@ -77,6 +191,105 @@ def _remove_if_empty(folders: Sequence[Path]) -> None:
             return
 
 
+def _home(output: Path) -> Path:
+    """The folder to stage ``output`` in: beside where it really is. A symlink at
+    ``output`` may lead to another file system, where a rename from beside the link
+    fails (EXDEV)."""
+    if output.is_symlink() and output.is_dir():
+        return output.resolve().parent
+    return output.parent
+
+
+# -- files of one conversion (urdf2mjcf -o) -------------------------------------------------
+
+
+class _FilesInstall:
+    """Staged files moved into ``folder`` and, until :meth:`discard`, the earlier files
+    they replaced (hard links in the staging folder), so :meth:`rollback` can put them
+    back."""
+
+    def __init__(self, stage: Path, folder: Path, order: list[str], made: list[Path]):
+        self.stage, self.folder, self.order, self.made = stage, folder, order, made
+        self.placed: list[tuple[str, bool]] = []
+        self.dirs: list[list[Path]] = []
+
+    def install(self) -> None:
+        backup = self.stage / _BACKUP
+        for rel in self.order:
+            target = self.folder / rel
+            kept = os.path.lexists(target)
+            if kept:
+                (backup / rel).parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    os.link(target, backup / rel, follow_symlinks=False)
+                except OSError:  # no hard links here: a copy serves
+                    shutil.copy2(target, backup / rel, follow_symlinks=False)
+            self.dirs.append(_make_parents(target.parent))
+            os.replace(self.stage / rel, target)
+            self.placed.append((rel, kept))
+
+    def rollback(self) -> None:
+        for rel, kept in reversed(self.placed):
+            target = self.folder / rel
+            if kept:
+                os.replace(self.stage / _BACKUP / rel, target)
+            else:
+                target.unlink(missing_ok=True)
+        self.placed.clear()
+        for dirs in reversed(self.dirs):
+            _remove_if_empty(dirs)
+
+    def discard(self) -> None:
+        _remove_all(self.made)
+
+
+class Together:
+    """The outputs of one run, installed together or not at all (see :func:`together`)."""
+
+    def __init__(self) -> None:
+        self.installs: list[_FilesInstall] = []
+        self.finally_: list[Callable[[], None]] = []
+
+    def last(self, step: Callable[[], None]) -> None:
+        """Run ``step`` (a report's rename) after every staged install; if it fails, they
+        are rolled back."""
+        self.finally_.append(step)
+
+    def _commit(self) -> None:
+        done: list[_FilesInstall] = []
+        try:
+            for inst in self.installs:
+                done.append(inst)
+                inst.install()
+            for step in self.finally_:
+                step()
+        except BaseException:
+            for inst in reversed(done):
+                inst.rollback()
+            raise
+
+
+_TOGETHER: ContextVar[Together | None] = ContextVar("urdf2mjcf_output_together", default=None)
+
+
+@contextmanager
+def together() -> Iterator[Together]:
+    """Within the block, :func:`write_atomic` stages and validates but installs only when
+    the block ends without an error, followed by the steps given to
+    :meth:`Together.last`; a failure of any of them undoes the others."""
+    batch = Together()
+    token = _TOGETHER.set(batch)
+    try:
+        yield batch
+        _TOGETHER.reset(token)
+        batch._commit()
+    finally:
+        if _TOGETHER.get() is batch:
+            _TOGETHER.reset(token)
+        for inst in batch.installs:
+            inst.discard()
+
+
 def write_atomic(
     output: Path, files: Mapping[str, bytes], validate: Callable[[Path], None]
 ) -> list[Path]:
@@ -85,31 +298,34 @@ def write_atomic(
 
     Assets go first and the main file last, so a reader never sees an MJCF
     whose meshes are missing. Returns the final paths. Files already in the
-    folder that are not in ``files`` are never touched.
+    folder that are not in ``files`` are never touched. Inside :func:`together`
+    the move waits for the end of its block.
     """
     folder = output.parent
     created = _make_parents(folder)
     made: list[Path] = []
-    final: list[Path] = []
+    inst: _FilesInstall | None = None
     try:
         stage = _temp_folder(folder, ".urdf2mjcf-", made)
         for rel, data in files.items():
+            if not _inside(stage, rel):  # names from a description or a cache entry
+                raise OutputError(f"refused to write {rel!r}: not inside its folder", file=output)
             path = stage / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
         validate(stage / output.name)
         order = sorted(files, key=lambda rel: (rel == output.name, "/" not in rel, rel))
-        for rel in order:
-            target = folder / rel
-            new = not target.exists()
-            _make_parents(target.parent)
-            os.replace(stage / rel, target)
-            if new:
-                final.append(target)
+        inst = _FilesInstall(stage, folder, order, made)
+        batch = _TOGETHER.get()
+        if batch is not None:
+            batch.installs.append(inst)  # it installs, and removes the stage, at its end
+            made = []
+        else:
+            inst.install()
         return [folder / rel for rel in order]
     except BaseException:
-        for path in final:  # only files that did not exist before: nothing of the user's
-            path.unlink(missing_ok=True)
+        if inst is not None:
+            inst.rollback()
         _remove_all(made)
         _remove_if_empty(created)
         raise
@@ -117,7 +333,7 @@ def write_atomic(
         _remove_all(made)
 
 
-# -- single files we write (JSON reports) -------------------------------------------------
+# -- single files we write (JSON reports, plots, recordings) -------------------------------
 
 
 def _json_object(path: Path) -> dict | None:
@@ -129,13 +345,14 @@ def _json_object(path: Path) -> dict | None:
 
 
 def check_file(path: Path, overwrite: bool, generator: str) -> None:
-    """Before the work: refuse to write ``path`` over a file we did not write.
+    """Before the work: refuse to write ``path`` over a file we did not write (a
+    symlink, even a dangling one, is not ours).
 
     A file is ours when it is a JSON object whose ``"generator"`` is ``generator``."""
     if path.is_dir():
         raise OutputError("is a folder; give the file to write", file=path)
-    if path.exists() and not overwrite:
-        data = _json_object(path)
+    if os.path.lexists(path) and not overwrite:
+        data = None if path.is_symlink() else _json_object(path)
         if data is None or data.get("generator") != generator:
             raise OutputError(
                 f"already exists and is not a report of {generator}; "
@@ -144,27 +361,86 @@ def check_file(path: Path, overwrite: bool, generator: str) -> None:
             )
 
 
+class Reserved:
+    """A temporary file beside ``path``, made before the work so that a folder we cannot
+    write in fails the run before any output is installed; :meth:`commit` renames it
+    into place."""
+
+    def __init__(self, path: Path, tmp: Path):
+        self.path, self.tmp = path, tmp
+        self.committed = False
+
+    def write(self, data: bytes) -> None:
+        with open(self.tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+
+    def commit(self) -> None:
+        os.replace(self.tmp, self.path)
+        self.committed = True
+
+
+def _temp_file(path: Path, made: list[Path]) -> Path:
+    """A new empty file beside ``path``, named with our process id (see
+    :func:`clean_stale`), put in ``made`` before it exists (see :func:`_temp_folder`)."""
+    while True:
+        tmp = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(6)}.tmp"
+        made.append(tmp)
+        try:  # the user's umask, not mkstemp's 0600: a file as any other they write
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+        except FileExistsError:
+            made.remove(tmp)
+            continue
+        return tmp
+
+
+@contextmanager
+def reserved_file(path: Path) -> Iterator[Reserved]:
+    """Reserve ``path`` (see :class:`Reserved`): made now, renamed by ``commit``, removed
+    (with the parent folders made for it) when the block ends without one."""
+    path = Path(path)
+    created = _make_parents(path.parent)
+    clean_stale(path.parent, path.name)
+    made: list[Path] = []
+    res: Reserved | None = None
+    try:
+        try:
+            tmp = _temp_file(path, made)
+        except OSError as exc:  # a folder we cannot write in: said before the work
+            raise OutputError(f"cannot write here: {exc.strerror}", file=path) from None
+        res = Reserved(path, tmp)
+        yield res
+    finally:
+        if res is None or not res.committed:
+            for tmp in made:
+                tmp.unlink(missing_ok=True)
+            _remove_if_empty(created)
+
+
+def json_bytes(data: Mapping[str, Any], generator: str) -> bytes:
+    """``data`` as our JSON, ``"generator"`` first."""
+    text = json.dumps({"generator": generator, **data}, indent=2, default=float) + "\n"
+    return text.encode()
+
+
 def write_json(path: Path, data: Mapping[str, Any], generator: str) -> None:
     """``data`` as JSON with ``"generator"`` first, written atomically (temp file, rename)."""
-    text = json.dumps({"generator": generator, **data}, indent=2, default=float) + "\n"
-    created = _make_parents(path.parent)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        _remove_if_empty(created)
-        raise
+    with reserved_file(path) as slot:
+        slot.write(json_bytes(data, generator))
+        slot.commit()
 
 
 # -- folders we build (make-facility's output, facility-demo's frames) --------------------
 
 
 def list_files(folder: Path) -> list[str]:
-    """Every file under ``folder``, as sorted relative POSIX paths."""
-    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
+    """Every file under ``folder``, as sorted relative POSIX paths (not our marker)."""
+    return sorted(
+        p.relative_to(folder).as_posix()
+        for p in folder.rglob("*")
+        if p.is_file() and p.relative_to(folder).as_posix() != MARKER
+    )
 
 
 def _inside(folder: Path, rel: Any) -> bool:
@@ -189,18 +465,33 @@ def owned_files(folder: Path, manifest_name: str, generator: str) -> list[str] |
     return sorted({*files, manifest_name})
 
 
+def recover(folder: Path) -> None:
+    """Undo what a killed run of ours left at ``folder``: an install cut short (its
+    trash folder's journal), staging folders, the marker of a staging folder that was
+    renamed into place."""
+    clean_stale(_home(folder), folder.name)
+    if folder.is_dir() and _stale_mark(folder) is not None:
+        (folder / MARKER).unlink(missing_ok=True)
+
+
 def check_folder(folder: Path, overwrite: bool, manifest_name: str, generator: str) -> list[str]:
     """Before the work: may we build into ``folder``? Returns the files an earlier run of
-    ours left there (to be replaced). Refuses a file, and a non-empty folder without our
-    manifest unless ``overwrite``."""
+    ours left there (to be replaced). Refuses a file, a symlink to nothing, and a
+    non-empty folder without our manifest unless ``overwrite``."""
+    recover(folder)
     if not folder.exists():
+        if os.path.lexists(folder) and not overwrite:
+            raise OutputError(
+                "already exists (a symlink to nothing); pass --overwrite to replace it",
+                file=folder,
+            )
         return []
     if not folder.is_dir():
         raise OutputError("exists and is not a folder", file=folder)
     owned = owned_files(folder, manifest_name, generator)
     if owned is not None:
         return owned
-    if any(folder.iterdir()) and not overwrite:
+    if any(p.name != MARKER for p in folder.iterdir()) and not overwrite:
         raise OutputError(
             f"folder is not empty and holds no {manifest_name} of an earlier {generator}; "
             "pass --overwrite to write into it (files we did not write are kept)",
@@ -211,17 +502,73 @@ def check_folder(folder: Path, overwrite: bool, manifest_name: str, generator: s
 
 @contextmanager
 def staged_folder(output: Path) -> Iterator[Path]:
-    """A temporary folder beside ``output`` to build in. On failure it is removed, with
-    any parent folders made for it, so nothing is left behind."""
-    created = _make_parents(output.parent)
+    """A temporary folder beside ``output`` (beside where a symlink there leads) to build
+    in. On failure it is removed, with any parent folders made for it, so nothing is
+    left behind."""
+    home = _home(output)
+    created = _make_parents(home)
     made: list[Path] = []
     try:
-        yield _temp_folder(output.parent, f".{output.name}-", made)
+        yield _temp_folder(home, f".{output.name}-", made)
     except BaseException:
         _remove_all(made)
         _remove_if_empty(created)
         raise
     _remove_all(made)
+
+
+_FILES = "files"
+"""In a trash folder: the earlier files, at their paths (apart from our marker and journal)."""
+
+
+def _journal(trash: Path, output: Path, new: Sequence[str], phase: str) -> None:
+    """Record, atomically, where an install stands: ``saving`` (earlier files going into
+    the trash), ``placing`` (new files going into the output), ``done``."""
+    data = {"output": str(output.resolve()), "phase": phase, "new": list(new)}
+    tmp = trash / f"{JOURNAL}.tmp"
+    tmp.write_text(json.dumps(data) + "\n")
+    os.replace(tmp, trash / JOURNAL)
+
+
+def _undo_install(trash: Path, output: Path) -> bool:
+    """Put back the earlier files of an install that was killed (its journal in
+    ``trash``); True when the trash holds nothing of the user's any more."""
+    journal = _json_object(trash / JOURNAL)
+    if journal is None:  # killed before the journal (nothing moved), or being removed
+        return True
+    if journal.get("phase") == "done":
+        return True
+    if journal.get("output") != str(output.resolve()):
+        return False
+    log.warning("undoing the install into %s that was killed; the earlier files go back", output)
+    new = journal.get("new")
+    if journal.get("phase") == "placing" and isinstance(new, list):
+        for rel in new:  # after ``saving`` no path of the new build held a file: ours
+            if _inside(output, rel):
+                target = output / rel
+                if target.is_symlink() or target.is_file():
+                    target.unlink()
+                _remove_if_empty([p for p in target.parents if p.is_relative_to(output)][:-1])
+    old, whole = trash / _FILES, True
+    for f in sorted(old.rglob("*")) if old.is_dir() else []:
+        if f.is_dir() and not f.is_symlink():
+            continue
+        target = output / f.relative_to(old)
+        if os.path.lexists(target):  # someone wrote here since: keep both, the trash too
+            whole = False
+            continue
+        _make_parents(target.parent)
+        os.replace(f, target)
+    return whole
+
+
+def _discard_trash(trash: Path) -> None:
+    """Remove a trash folder whose install is done, its marker last: a kill part-way
+    leaves one that :func:`clean_stale` still knows as ours."""
+    shutil.rmtree(trash / _FILES, ignore_errors=True)
+    for name in (f"{JOURNAL}.tmp", JOURNAL, MARKER):
+        (trash / name).unlink(missing_ok=True)
+    shutil.rmtree(trash, ignore_errors=True)
 
 
 def install_folder(
@@ -232,14 +579,23 @@ def install_folder(
     ``previous`` (from :func:`check_folder`) are the files an earlier run wrote; those
     the new run lacks are removed. Anything else in ``output`` is kept; a file of the
     user's at a path we write is replaced only with ``overwrite``. A failure part-way
-    puts the earlier files back. Returns the files written (relative paths).
+    puts the earlier files back; so does the next run after a kill (the journal in the
+    trash folder). Returns the files written (relative paths).
     """
     new = sorted(list_files(stage), key=lambda rel: (rel == last, "/" not in rel, rel))
     if not output.exists():
+        if os.path.lexists(output):  # a symlink to nothing: check_folder let it go
+            if not overwrite:
+                raise OutputError(
+                    "already exists (a symlink to nothing); pass --overwrite to replace it",
+                    file=output,
+                )
+            output.unlink()
         os.replace(stage, output)
+        (output / MARKER).unlink(missing_ok=True)
         return new
     ours = set(previous)
-    clash = [rel for rel in new if rel not in ours and (output / rel).exists()]
+    clash = [rel for rel in new if rel not in ours and os.path.lexists(output / rel)]
     if clash and not overwrite:
         raise OutputError(
             f"would replace '{clash[0]}', which we did not write; pass --overwrite to replace it",
@@ -248,30 +604,50 @@ def install_folder(
     made: list[Path] = []
     moved: list[str] = []
     placed: list[str] = []
+    dirs: list[list[Path]] = []
     try:
-        trash = _temp_folder(output.parent, f".{output.name}-old-", made)
+        trash = _temp_folder(_home(output), f".{output.name}-old-", made, kind="trash")
+        _journal(trash, output, new, "saving")
         for rel in sorted(ours | set(clash)):
             src = output / rel
             if src.is_file() or src.is_symlink():
-                (trash / rel).parent.mkdir(parents=True, exist_ok=True)
-                os.replace(src, trash / rel)
+                (trash / _FILES / rel).parent.mkdir(parents=True, exist_ok=True)
+                os.replace(src, trash / _FILES / rel)
                 moved.append(rel)
+        _journal(trash, output, new, "placing")
         for rel in new:
             target = output / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
+            dirs.append(_make_parents(target.parent))
             os.replace(stage / rel, target)
             placed.append(rel)
+        _journal(trash, output, new, "done")
     except BaseException:
-        for rel in placed:
-            (output / rel).unlink(missing_ok=True)
-        for rel in moved:
-            os.replace(trash / rel, output / rel)
+        try:
+            for rel in placed:
+                (output / rel).unlink(missing_ok=True)
+            for rel in moved:
+                os.replace(trash / _FILES / rel, output / rel)
+            for created in reversed(dirs):
+                _remove_if_empty(created)
+        except BaseException:  # the trash keeps what did not go back; the next run does it
+            made.clear()
+            raise
         raise
     finally:
-        _remove_all(made)
+        for folder in made:
+            _discard_trash(folder)
     kept = set(new)
     for rel in moved:  # folders that only held our old files go too
         if rel not in kept:
             parents = (output / rel).parents
             _remove_if_empty([p for p in parents if p.is_relative_to(output) and p != output])
     return new
+
+
+def check_not_dangling(path: Path, overwrite: bool) -> None:
+    """Refuse a symlink to nothing at ``path`` unless ``overwrite``: a file is there,
+    even if ``path.exists()`` says no (checks that only ask that would replace it)."""
+    if path.is_symlink() and not path.exists() and not overwrite:
+        raise OutputError(
+            "already exists (a symlink to nothing); pass --overwrite to replace it", file=path
+        )

@@ -19,6 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import InputError
+from ..untrusted import excerpt, is_folder_name
 
 log = logging.getLogger(__name__)
 
@@ -75,7 +76,13 @@ def is_installed(root: Path) -> bool:
 
 def default_output(root: Path, name: str) -> Path:
     """``build/<name>`` in a checkout; in the current folder when the root is the wheel's
-    copy, which belongs to the installation and is never written to."""
+    copy, which belongs to the installation and is never written to. ``name`` (the
+    recipe's, checked where it is read) must be one plain folder name: never a path
+    that leads out of ``build/`` or is ``build/`` itself."""
+    if not is_folder_name(name):
+        raise InputError(
+            f"recipe name '{excerpt(str(name))}' is not a plain folder name", element="name"
+        )
     return Path("build") / name if is_installed(root) else root / "build" / name
 
 

@@ -14,10 +14,19 @@ files written on the worker.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import itertools
 import logging
 import multiprocessing as mp
-from collections.abc import Callable, Sequence
+import os
+import shutil
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 from ..errors import ConversionError
@@ -29,6 +38,9 @@ R = TypeVar("R")
 Kind = Literal["local", "ray"]
 EXECUTORS: tuple[Kind, ...] = ("local", "ray")
 RAY_INSTALL = "pip install 'mjcf-forge[ray]'"
+STOP_GRACE = 2.0
+"""Seconds a worker has to end on SIGTERM (removing its temporary folders) before it is
+killed; the whole stop stays well within the 5 s a SIGTERM or Ctrl-C is given."""
 
 
 class ExecutorError(ConversionError):
@@ -67,24 +79,139 @@ def _run_local(
     results: dict[int, R] = {}
     if not jobs:
         return []
+    size = workers or min(len(jobs), 8)
     # spawn, not fork: MuJoCo's OpenGL contexts and thread pools do not survive a fork
     pool = ProcessPoolExecutor(
-        max_workers=workers or min(len(jobs), 8), mp_context=mp.get_context("spawn")
+        max_workers=size,
+        mp_context=mp.get_context("spawn"),
+        initializer=_worker_start,
+        initargs=(os.getpid(),),
     )
+    todo = iter(enumerate(jobs))
+    pending: dict[Any, int] = {}
     try:
-        pending = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in sorted(done, key=pending.__getitem__):
-                i = pending.pop(fut)
-                results[i] = fut.result()
-                if on_done:
-                    on_done(i, results[i])
-    except BaseException:  # Ctrl-C or a failed job: the queued jobs do not start
-        pool.shutdown(wait=False, cancel_futures=True)
+        # Ctrl-C and SIGTERM act only between the pool's calls: one raised inside them
+        # (a lock taken, not given back) hangs the pool's own thread, and the exit with it.
+        with _signals_between() as check:
+            while True:
+                for i, job in itertools.islice(todo, 2 * size - len(pending)):
+                    pending[pool.submit(fn, job)] = i  # a few queued: no 100,000 futures
+                if not pending:
+                    break
+                done, _ = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                check()
+                for fut in sorted(done, key=pending.__getitem__):
+                    i = pending.pop(fut)
+                    results[i] = fut.result()
+                    if on_done:
+                        on_done(i, results[i])
+    except BaseException:  # Ctrl-C, SIGTERM or a failed job: no job goes on running
+        _stop_pool(pool)
         raise
     pool.shutdown()
     return [results[i] for i in range(len(jobs))]
+
+
+# -- workers end with the run ------------------------------------------------------------
+
+_cleanups: list[Path] = []
+"""In a worker: folders to remove if it is told to stop (SIGTERM) mid-job."""
+
+
+@contextlib.contextmanager
+def removed_on_stop(folder: Path) -> Iterator[Path]:
+    """In a worker: remove ``folder`` too when the worker is stopped during the block."""
+    _cleanups.append(folder)
+    try:
+        yield folder
+    finally:
+        _cleanups.remove(folder)
+
+
+def _worker_start(parent: int) -> None:
+    """In each pool process: Ctrl-C is the parent's to handle (the terminal sends it to
+    every process of the group); SIGTERM, from the parent stopping the pool, removes the
+    job's temporary folders and ends the process at once; on Linux the kernel kills it
+    if the parent dies, even by SIGKILL, so no worker outlives its run."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_terminated)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the line above
+        os._exit(1)
+
+
+def _worker_terminated(signum: int, frame: Any) -> None:
+    for folder in list(_cleanups):
+        shutil.rmtree(folder, ignore_errors=True)
+    os._exit(128 + signum)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """End every process of ``pool`` now: queued jobs cancelled, running ones stopped
+    (SIGTERM, then SIGKILL after :data:`STOP_GRACE` seconds), all reaped. A second
+    Ctrl-C or SIGTERM meanwhile waits (it would cut the stop short into orphans)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    with _signals_held():
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            with contextlib.suppress(Exception):
+                proc.terminate()
+        for proc in procs:
+            with contextlib.suppress(Exception):
+                proc.join(STOP_GRACE)
+                if proc.is_alive():
+                    proc.kill()
+                    proc.join(STOP_GRACE)
+
+
+@contextlib.contextmanager
+def _signals_between() -> Iterator[Callable[[], None]]:
+    """Hold Ctrl-C and SIGTERM while the block runs; the check it yields acts on one
+    that came (the handler it would have met: Terminated, KeyboardInterrupt)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    got: list[int] = []
+    watched = (signal.SIGINT, signal.SIGTERM)
+    previous: dict[int, Any] = {
+        s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in watched
+    }
+
+    def restore() -> None:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+    def check() -> None:
+        if not got:
+            return
+        restore()
+        handler = previous[got[0]]
+        if callable(handler):
+            handler(got[0], None)  # raises, as it would have
+        elif handler == signal.SIG_DFL:
+            if got[0] == signal.SIGINT:
+                raise KeyboardInterrupt
+            signal.raise_signal(got[0])
+
+    try:
+        yield check
+    finally:
+        restore()
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 def import_ray() -> Any:

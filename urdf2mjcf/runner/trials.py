@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from .executors import Kind, run_jobs
+from .executors import Kind, removed_on_stop, run_jobs
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,10 @@ def run_trial(job: TrialJob) -> dict:
 
     start = time.perf_counter()
     lines: list[str] = []
-    with tempfile.TemporaryDirectory(prefix="imetro-trial-") as tmp:
+    with (
+        tempfile.TemporaryDirectory(prefix="imetro-trial-") as tmp,
+        removed_on_stop(Path(tmp)),  # a worker stopped mid-trial leaves no folder behind
+    ):
         frames = Path(tmp) / "frames" if job.frames else None
         offsets = None
         try:
