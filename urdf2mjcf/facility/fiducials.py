@@ -37,6 +37,8 @@ from ..assets import content_name
 from ..errors import InputError
 from ..fmt import fmt_vec
 from ..transforms import quat_from_rpy, rpy_to_matrix
+from ..untrusted import excerpt
+from .values import ANGLE_MAX, number
 
 if TYPE_CHECKING:
     import mujoco
@@ -56,6 +58,10 @@ CELL_PX = 32
 THICKNESS = 0.002
 """m, of the plate; it lies behind the tag's face (z <= 0 in the tag's frame)."""
 KEYS = ("id", "link", "xyz", "rpy", "size")
+SIZE_MAX = 10.0
+"""m: the largest tag (the black square's edge); the real ones are 0.1 m."""
+OFFSET_MAX = 1_000.0
+"""m: the largest coordinate of a tag in its link's frame."""
 
 
 @dataclass(frozen=True)
@@ -79,10 +85,12 @@ class Fiducial:
         return self.size * (CELLS + 2 * BORDER_CELLS) / CELLS
 
 
-def _vector(value: Any, src: Source, key: str) -> tuple[float, float, float]:
+def _vector(value: Any, src: Source, key: str, bound: float) -> tuple[float, float, float]:
     if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise src.fail(key, f"'{value}' is not three numbers [x, y, z]")
-    return tuple(src.number(v, f"{key}.{i}") for i, v in enumerate(value))  # type: ignore[return-value]
+        raise src.fail(key, f"'{excerpt(str(value), 40)}' is not three numbers [x, y, z]")
+    return tuple(  # type: ignore[return-value]
+        number(v, src, f"{key}.{i}", low=-bound, high=bound) for i, v in enumerate(value)
+    )
 
 
 def parse_fiducials(value: Any, src: Source, where: str) -> tuple[Fiducial, ...]:
@@ -100,17 +108,17 @@ def parse_fiducials(value: Any, src: Source, where: str) -> tuple[Fiducial, ...]
         src.known(spec, KEYS, key)
         tag_id = spec["id"]
         if isinstance(tag_id, bool) or not isinstance(tag_id, int) or not 0 <= tag_id < TAG_COUNT:
-            raise src.fail(f"{key}.id", f"'{tag_id}' is not a {FAMILY} id (0 .. {TAG_COUNT - 1})")
+            shown = excerpt(str(tag_id), 40)
+            raise src.fail(f"{key}.id", f"'{shown}' is not a {FAMILY} id (0 .. {TAG_COUNT - 1})")
         link = src.text(spec["link"], f"{key}.link", required=True)
-        size = src.number(spec["size"], f"{key}.size")
-        if size <= 0:
-            raise src.fail(f"{key}.size", "a tag's size is > 0 (m, the black square's edge)")
+        # m, the black square's edge
+        size = number(spec["size"], src, f"{key}.size", low=0.0, high=SIZE_MAX, low_open=True)
         out.append(
             Fiducial(
                 id=tag_id,
                 link=str(link),
-                xyz=_vector(spec["xyz"], src, f"{key}.xyz"),
-                rpy=_vector(spec.get("rpy", [0, 0, 0]), src, f"{key}.rpy"),
+                xyz=_vector(spec["xyz"], src, f"{key}.xyz", OFFSET_MAX),
+                rpy=_vector(spec.get("rpy", [0, 0, 0]), src, f"{key}.rpy", ANGLE_MAX),
                 size=size,
             )
         )

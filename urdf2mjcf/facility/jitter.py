@@ -15,7 +15,9 @@ from collections.abc import Collection, Mapping
 
 import numpy as np
 
+from ..errors import InputError
 from .recipe import Pose2D, Ranges
+from .values import SEED_MAX
 
 
 def jittered(
@@ -30,6 +32,8 @@ def jittered(
     no offsets."""
     if seed is None:
         return dict(placements), {}
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= SEED_MAX:
+        raise InputError(f"'{seed}' is not a seed (0 .. {SEED_MAX})", file="--seed")
     rng = np.random.default_rng(seed)
     offsets: dict[str, dict[str, float]] = {}
 

@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .. import output
+from ..errors import InputError
 from .recipe import Pose2D, Recipe
+from .values import number
 
 if TYPE_CHECKING:
     import mujoco
@@ -49,8 +51,6 @@ def _prefixed(value: Any, prefix: str) -> Any:
 def _check_names(m: mujoco.MjModel, value: Any, where: str) -> None:
     """Every name a role gives must exist in the compiled model (as some kind of object)."""
     import mujoco
-
-    from ..errors import InputError
 
     if isinstance(value, str):
         kinds = (
@@ -98,6 +98,41 @@ def _components(
 
 
 MECHANISM_KEYS = ("holds", "lock", "locked", "released")
+JOINT_MAX = 10_000.0
+"""Magnitude of a mechanism's locked and released joint values (rad or m)."""
+_OPTIONS = {  # recipe simulation key -> (MjOption field, MuJoCo enum or None)
+    "timestep": ("timestep", None),
+    "impratio": ("impratio", None),
+    "iterations": ("iterations", None),
+    "integrator": ("integrator", "mjtIntegrator"),
+    "solver": ("solver", "mjtSolver"),
+    "cone": ("cone", "mjtCone"),
+}
+
+
+def check_simulation(m: mujoco.MjModel, recipe: Recipe) -> None:
+    """Every ``simulation:`` option of the recipe is the compiled model's: a world
+    xacro that does not pass one to ``<option>`` would otherwise ignore it silently.
+    An InputError naming the recipe and the option when it differs."""
+    import mujoco
+
+    for key, value in recipe.simulation.items():
+        field, enum = _OPTIONS[key]
+        actual = getattr(m.opt, field)
+        if enum is None:
+            same = float(actual) == float(value)
+            shown = f"{float(actual):g}"
+        else:
+            name = getattr(mujoco, enum)(int(actual)).name.split("_", 1)[1]
+            same = name.lower() == str(value).lower()
+            shown = name.lower()
+        if not same:
+            raise InputError(
+                f"the world's xacro ({recipe.xacro}) does not set option '{key}' from the "
+                f"recipe: the built model has {shown}, the recipe asks for {value}",
+                file=recipe.path or "recipe",
+                element=f"simulation.{key}",
+            )
 
 
 def _mechanisms(
@@ -131,8 +166,10 @@ def _mechanisms(
                         message = f"no joint '{joint}' in the facility (component '{name}')"
                         raise src.fail(f"{mech}.{key}", message)
                     entry[key] = joint
-                else:
-                    entry[key] = src.number(spec[key], f"{mech}.{key}")
+                else:  # a joint value, rad or m
+                    entry[key] = number(
+                        spec[key], src, f"{mech}.{key}", low=-JOINT_MAX, high=JOINT_MAX
+                    )
             out.append(entry)
     return out
 
@@ -155,6 +192,7 @@ def manifest(
     import mujoco
 
     m = compiled if compiled is not None else mujoco.MjModel.from_xml_path(str(scene))
+    check_simulation(m, recipe)
     obj = mujoco.mjtObj
     joints = [
         {

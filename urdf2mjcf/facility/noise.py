@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..schema import Source
+from .values import number
 
 DEFAULTS: dict[str, dict[str, float | None]] = {
     # Depth RMS error = z^2 * subpixel / (focal_px * baseline) (Grunnet-Jepsen et al.,
@@ -36,6 +37,24 @@ DEFAULTS: dict[str, dict[str, float | None]] = {
     "wrench": {"force_std": 0.5, "torque_std": 0.02, "force_bias": 2.0, "torque_bias": 0.1},
 }
 CHANNELS = tuple(DEFAULTS)
+RANGES: dict[str, tuple[float, float, bool]] = {
+    # field: (low, high, low_open). Each is >= 0 (> 0 for a divisor) and bounded where a
+    # larger value stops describing a sensor: a gain or light factor of 1 +- x with
+    # x > 1 would turn negative, images are 0..255 DN, a camera's focal length and
+    # baseline are those of a real one.
+    "subpixel": (0.0, 100.0, False),
+    "baseline": (0.0, 10.0, True),  # m
+    "focal_px": (0.0, 1e6, True),  # px
+    "read_std": (0.0, 255.0, False),  # DN
+    "shot_gain": (0.0, 255.0, False),  # DN
+    "gain": (0.0, 1.0, False),
+    "light": (0.0, 1.0, False),
+    "force_std": (0.0, 1e5, False),  # N
+    "torque_std": (0.0, 1e4, False),  # N m
+    "force_bias": (0.0, 1e5, False),
+    "torque_bias": (0.0, 1e4, False),
+}
+"""Each setting's range (every value is finite: ``urdf2mjcf.facility.values.number``)."""
 
 
 def parse_noise(value: Any, src: Source, key: str = "noise") -> dict[str, dict | bool]:
@@ -60,10 +79,8 @@ def parse_noise(value: Any, src: Source, key: str = "noise") -> dict[str, dict |
         for field, v in given.items():
             if v is None and defaults[field] is None:
                 continue
-            x = src.number(v, f"{where}.{field}")
-            if x < 0 or (x == 0 and field in ("baseline", "focal_px")):
-                bound = "> 0" if field in ("baseline", "focal_px") else ">= 0"
-                raise src.fail(f"{where}.{field}", f"must be {bound}")
-            settings[field] = x
+            low, high, low_open = RANGES[field]
+            settings[field] = number(v, src, f"{where}.{field}", low=low, high=high,
+                                     low_open=low_open)
         out[name] = settings
     return out

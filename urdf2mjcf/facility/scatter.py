@@ -20,6 +20,15 @@ from every placement and not overlapping an earlier rock (centres at least
 the sum of their sizes apart, half-size each). The same recipe and seed give
 the same rocks. The world receives them as one xacro argument,
 ``rocks:="variant x y z yaw size; ..."``.
+
+Bounds (a recipe is a stranger's file; docs/security.md): ``count`` <= 10,000
+(every recipe in ``recipes/`` asks for 30; each rock is a body in the compiled
+model and about 60 characters of the xacro argument, and 10,000 rocks are a
+crowded square kilometre), ``variants`` 1 .. 100, ``seed`` 0 .. 2**32-1,
+coordinates within +-10 km, sizes 0.01 .. 100 m, at most 100 keep-out
+rectangles. The scatter gives up after 2,000 draws per rock, 200,000 draws in all
+or ``WORK_MAX`` checks, whichever comes first, so a count that does not fit fails
+in seconds, not hours.
 """
 
 from __future__ import annotations
@@ -34,7 +43,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..schema import Source
-from .values import fail, number
+from .values import LENGTH_MAX, SEED_MAX, fail, number, whole
 
 ROCK_KEYS = ("count", "seed", "area", "size", "clearance", "keepout", "variants", "z")
 DEFAULTS: dict[str, Any] = {
@@ -50,6 +59,20 @@ DEFAULTS: dict[str, Any] = {
 SINK = 0.08
 """The rock's centre sits SINK x size above the ground: about a third of it is buried."""
 TRIES_PER_ROCK = 2000
+COUNT_MAX = 10_000
+"""Most rocks a recipe may ask for (see the module's docstring)."""
+VARIANTS_MAX = 100
+KEEPOUT_MAX = 100
+SIZE_RANGE = (0.01, 100.0)
+"""m: the smallest and the largest rock size allowed."""
+TRY_MAX = 200_000
+"""Most draws one scatter makes before giving up (a few seconds); the recipes' scatters
+end long before it (30 rocks: at most 60,000 draws, in practice under 100)."""
+WORK_MAX = 5_000_000
+"""Most draws x (keep-outs + placements) checks one scatter makes before giving up."""
+_BATCH = 1024
+"""Draws taken from the generator at once (the same numbers as one draw at a time)."""
+_AROUND = [(dx, dy) for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
 
 
 @dataclass(frozen=True)
@@ -66,10 +89,17 @@ def _fail(path: Path | Source | None, key: str, message: str) -> InputError:
     return fail(path, f"rocks.{key}", message)
 
 
-def _numbers(value: Any, n: int, path: Path | Source | None, key: str) -> list[float]:
+def _numbers(
+    value: Any,
+    n: int,
+    path: Path | Source | None,
+    key: str,
+    low: float = -LENGTH_MAX,
+    high: float = LENGTH_MAX,
+) -> list[float]:
     if not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, key, f"needs {n} numbers")
-    return [number(v, path, f"rocks.{key}") for v in value]
+    return [number(v, path, f"rocks.{key}", low=low, high=high) for v in value]
 
 
 def parse_rocks(data: Any, path: Path | Source | None) -> dict[str, Any]:
@@ -81,24 +111,20 @@ def parse_rocks(data: Any, path: Path | Source | None) -> dict[str, Any]:
     unknown = set(data) - set(ROCK_KEYS)
     if unknown:
         raise _fail(path, ", ".join(sorted(unknown)), f"unknown key; valid: {', '.join(ROCK_KEYS)}")
-    spec = {**DEFAULTS, **data}
-    for key in ("count", "seed", "variants"):
-        value = spec[key]
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise _fail(path, key, f"'{value}' is not a whole number >= 0")
-    if spec["variants"] < 1:
-        raise _fail(path, "variants", "needs at least one rock mesh")
+    spec = {**DEFAULTS, **{str(k): v for k, v in data.items()}}
+    whole(spec["count"], path, "rocks.count", low=0, high=COUNT_MAX)
+    whole(spec["seed"], path, "rocks.seed", low=0, high=SEED_MAX)
+    whole(spec["variants"], path, "rocks.variants", low=1, high=VARIANTS_MAX)
     area = _numbers(spec["area"], 4, path, "area")
     if not (area[0] < area[1] and area[2] < area[3]):
         raise _fail(path, "area", "needs x0 < x1 and y0 < y1")
-    size = _numbers(spec["size"], 2, path, "size")
-    if not 0 < size[0] <= size[1]:
-        raise _fail(path, "size", "needs 0 < smallest <= largest")
-    clearance = _numbers([spec["clearance"]], 1, path, "clearance")[0]
-    if clearance < 0:
-        raise _fail(path, "clearance", "must be >= 0")
-    if not isinstance(spec["keepout"], (list, tuple)):
-        raise _fail(path, "keepout", "a list of [x0, x1, y0, y1] rectangles")
+    size = _numbers(spec["size"], 2, path, "size", *SIZE_RANGE)
+    if not size[0] <= size[1]:
+        raise _fail(path, "size", "needs smallest <= largest")
+    clearance = _numbers([spec["clearance"]], 1, path, "clearance", 0.0)[0]
+    if not isinstance(spec["keepout"], (list, tuple)) or len(spec["keepout"]) > KEEPOUT_MAX:
+        message = f"a list of at most {KEEPOUT_MAX} [x0, x1, y0, y1] rectangles"
+        raise _fail(path, "keepout", message)
     keepout = [_numbers(r, 4, path, "keepout") for r in spec["keepout"]]
     z = _numbers([spec["z"]], 1, path, "z")[0]
     return {
@@ -130,9 +156,18 @@ def scatter(
     keep = [tuple(r) for r in spec["keepout"]]
     avoid = [(float(x), float(y)) for x, y in placements]
     rocks: list[Rock] = []
-    for _ in range(TRIES_PER_ROCK * count):
+    # Rocks by grid cell (a cell as wide as the largest rock): two rocks overlap only
+    # when their centres are nearer than that, so only the 3 x 3 cells around a draw
+    # can hold one it overlaps. The same test as against every rock, in O(1).
+    cell = smax
+    grid: dict[tuple[int, int], list[Rock]] = {}
+    tries = min(TRIES_PER_ROCK * count, TRY_MAX, WORK_MAX // (1 + len(keep) + len(avoid)))
+    draws: list[list[float]] = []
+    for i in range(tries):
+        if i % _BATCH == 0:
+            draws = rng.random((_BATCH, 4)).tolist()
         # always four draws per try, so one setting never shifts another's numbers
-        u = [float(v) for v in rng.random(4)]
+        u = draws[i % _BATCH]
         x, y = x0 + u[0] * (x1 - x0), y0 + u[1] * (y1 - y0)
         size = smin + u[2] * (smax - smin)
         yaw = u[3] * 2 * math.pi
@@ -140,13 +175,27 @@ def scatter(
             continue
         if any(math.hypot(x - px, y - py) < clear + size / 2 for px, py in avoid):
             continue
-        if any(math.hypot(x - r.x, y - r.y) < (size + r.size) / 2 for r in rocks):
+        cx, cy = math.floor(x / cell), math.floor(y / cell)
+        if _overlaps(grid, cx, cy, x, y, size):
             continue
         variant = len(rocks) % int(spec["variants"])
-        rocks.append(Rock(variant, x, y, spec["z"] + SINK * size, yaw, size))
+        rock = Rock(variant, x, y, spec["z"] + SINK * size, yaw, size)
+        rocks.append(rock)
+        grid.setdefault((cx, cy), []).append(rock)
         if len(rocks) == count:
             return rocks
     raise _fail(path, "count", f"only {len(rocks)} of {count} rocks fit in the area")
+
+
+def _overlaps(
+    grid: dict[tuple[int, int], list[Rock]], cx: int, cy: int, x: float, y: float, size: float
+) -> bool:
+    """Whether a rock at (x, y) of ``size`` overlaps one in the 3 x 3 cells around (cx, cy)."""
+    for dx, dy in _AROUND:
+        for r in grid.get((cx + dx, cy + dy), ()):
+            if math.hypot(x - r.x, y - r.y) < (size + r.size) / 2:
+                return True
+    return False
 
 
 def rocks_arg(rocks: Iterable[Rock]) -> str:

@@ -1,4 +1,13 @@
-"""Checked values from recipe files: one error shape (file and key) for every field."""
+"""Checked values from recipe files: one error shape (file and key) for every field,
+and the documented ranges of the facility's numbers.
+
+A recipe, a ``--set`` and a waypoints file are written by strangers: every number
+in them is finite and within the range below, or the build (or the demo) stops
+with one error naming the file, the key and its line, before anything runs.
+The ranges are wide enough for every recipe in ``recipes/`` and every real
+facility we know, and narrow enough that no value can make a build or a run
+loop for hours, allocate without bound or overflow (docs/security.md).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +18,41 @@ from typing import Any
 from ..errors import InputError
 from ..schema import Source
 
+SEED_MAX = 2**32 - 1
+"""Largest seed (``make-facility --seed``, ``facility-demo --seed``, ``rocks.seed``):
+numpy takes any integer >= 0, 32 bits are more trials than anyone runs."""
+LENGTH_MAX = 10_000.0
+"""m: largest coordinate of a placement, a rock area or a keep-out (10 km; the
+lunar terrain is 1 km across)."""
+ANGLE_MAX = 4 * math.pi
+"""rad: largest yaw or roll-pitch-yaw angle (two turns either way)."""
+JITTER_POSITION_MAX = 10.0
+"""m: largest +- position range of a component's jitter."""
+JITTER_YAW_MAX = math.pi
+"""rad: largest +- yaw range of a component's jitter (a half turn: any heading)."""
+TIMESTEP_RANGE = (1e-5, 0.1)
+"""s: ``simulation.timestep`` (MuJoCo's default is 0.002); below it one simulated
+second is over 100,000 steps, above it no contact is stable."""
+ITERATIONS_MAX = 10_000
+"""``simulation.iterations`` (MuJoCo's default 100): solver iterations per step."""
+IMPRATIO_MAX = 1_000.0
+"""``simulation.impratio`` (> 0; our recipes use 10)."""
+FLAG_MAX = 1e9
+"""Magnitude of any numeric flag (a xacro argument) without its own range."""
+FLAG_RANGES: dict[str, tuple[float, float, bool]] = {
+    # name: (low, high, low_open): the numeric flags of our worlds with a physical range
+    "strap_stiffness": (0.0, 1e6, False),  # N/m of the CTB's handle strap; 0: rigid
+    "terrain_size_x": (0.0, 100_000.0, True),  # m, the heightmap's extent
+    "terrain_size_y": (0.0, 100_000.0, True),
+    "terrain_z_min": (-10_000.0, 10_000.0, False),  # m, darkest pixel's elevation
+    "terrain_z_max": (-10_000.0, 10_000.0, False),  # m, brightest pixel's elevation
+    "terrain_x": (-LENGTH_MAX, LENGTH_MAX, False),
+    "terrain_y": (-LENGTH_MAX, LENGTH_MAX, False),
+    "terrain_base": (0.0, 10_000.0, True),  # m, the heightfield's base thickness
+    "gravity": (0.0, 1_000.0, False),  # m/s^2 (or auto: the terrain's own)
+}
+"""Numeric flags with a range of their own (any other numeric flag: |x| <= FLAG_MAX)."""
+
 
 def fail(path: Path | Source | None, key: str, message: str) -> InputError:
     """The error naming the file and the key (and its line, given the file's Source)."""
@@ -17,12 +61,42 @@ def fail(path: Path | Source | None, key: str, message: str) -> InputError:
     return InputError(message, file=path or "recipe", element=key)
 
 
-def number(value: Any, path: Path | Source | None, key: str) -> float:
-    """A finite float, or an InputError naming the file and the key."""
+def _range_text(low: float, high: float, low_open: bool) -> str:
+    return f"{'above' if low_open else 'from'} {low:g} to {high:g}"
+
+
+def number(
+    value: Any,
+    path: Path | Source | None,
+    key: str,
+    *,
+    low: float = -math.inf,
+    high: float = math.inf,
+    low_open: bool = False,
+) -> float:
+    """A finite float in [low, high] (``(low, high]`` with ``low_open``), or an
+    InputError naming the file and the key."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise fail(path, key, f"'{_short(value)}' is not a number")
     try:
         x = float(value)
-    except (TypeError, ValueError):
-        raise fail(path, key, f"'{value}' is not a number") from None
+    except (ValueError, OverflowError):
+        raise fail(path, key, f"'{_short(value)}' is not a number") from None
     if not math.isfinite(x):
-        raise fail(path, key, f"'{value}' is not finite")
+        raise fail(path, key, f"'{_short(value)}' is not finite")
+    if (x <= low if low_open else x < low) or x > high:
+        raise fail(path, key, f"{x:g} is out of range ({_range_text(low, high, low_open)})")
     return x
+
+
+def whole(value: Any, path: Path | Source | None, key: str, *, low: int, high: int) -> int:
+    """An integer (not a bool, not a float) in [low, high], or an InputError."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise fail(path, key, f"'{_short(value)}' is not a whole number from {low} to {high}")
+    return value
+
+
+def _short(value: Any) -> str:
+    from ..untrusted import excerpt
+
+    return excerpt(str(value), 40)

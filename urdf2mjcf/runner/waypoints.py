@@ -4,6 +4,12 @@
 required fields); :func:`check_names` checks it against a loaded facility
 (bodies, joints, the robot's sites and cameras, vector lengths). Each error
 names the file and the element (``steps[3] 'approach'.position``).
+
+A waypoints file may come from a stranger: every number is finite and in a
+documented range (``DURATION_MAX`` s for each duration, wait and hold time,
+``HINGE_STEPS_MAX`` hinge steps, ``STEPS_MAX`` steps, positions within
+``POSITION_MAX`` m, ...), so no value can make the demo step for hours, render an
+image larger than the model's offscreen buffer or divide by zero.
 """
 
 from __future__ import annotations
@@ -16,9 +22,29 @@ from typing import Any
 import mujoco
 
 from ..errors import FacilityError
+from ..facility.fiducials import TAG_COUNT
+from ..facility.values import ANGLE_MAX, LENGTH_MAX, TIMESTEP_RANGE
 from ..schema import Source, load
+from ..untrusted import excerpt
 
 Check = Callable[[Any, str, "Waypoints"], None]
+
+DURATION_MAX = 600.0
+"""s simulated: the longest duration, wait, hold or settle time of one step (and the
+final wait); the demo's own are under 2 s."""
+STEPS_MAX = 1_000
+"""Most steps a waypoints file may hold (the published demo has 28)."""
+HINGE_STEPS_MAX = 1_000
+"""Most poses of one hinge step (the published one has 8)."""
+POSITION_MAX = 1_000.0
+"""m: the largest coordinate of a position, a tool or world offset, a volume."""
+JOINT_MAX = 1_000.0
+"""rad or m: the largest joint value (q, arm, set, IK seeds)."""
+SPEED_MAX = 100.0
+"""The largest speed factor of a step (of the robot's vmax) and the largest vmax."""
+IMAGE_MAX = 16_384
+"""px: the largest perception image side (MuJoCo's offscreen buffer's own limit)."""
+PIXELS_MAX = IMAGE_MAX * IMAGE_MAX
 
 
 class Waypoints:
@@ -32,30 +58,58 @@ class Waypoints:
         return self.source.fail(where, message)  # type: ignore[return-value]
 
 
-def _number(value: Any, where: str, w: Waypoints, *, low: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise w.fail(where, f"'{value}' is not a number")
-    if low is not None and value < low:
-        raise w.fail(where, f"must be >= {low:g}")
-    return float(value)
+def _number(
+    value: Any,
+    where: str,
+    w: Waypoints,
+    *,
+    low: float = -math.inf,
+    high: float = math.inf,
+    low_open: bool = False,
+) -> float:
+    """A finite float in [low, high] (``(low, high]`` with ``low_open``)."""
+    x = math.nan
+    if not isinstance(value, bool) and isinstance(value, (int, float)):
+        try:
+            x = float(value)
+        except OverflowError:  # an integer of 400 digits
+            pass
+    if not math.isfinite(x):
+        raise w.fail(where, f"'{excerpt(str(value), 40)}' is not a number")
+    if (x <= low if low_open else x < low) or x > high:
+        lo = "above" if low_open else "from"
+        raise w.fail(where, f"{x:g} is out of range ({lo} {low:g} to {high:g})")
+    return x
 
 
-def number(value: Any, where: str, w: Waypoints) -> None:
-    _number(value, where, w)
+def ranged(low: float, high: float, low_open: bool = False) -> Check:
+    """A check of one number in [low, high] (``(low, high]`` with ``low_open``)."""
+
+    def check(value: Any, where: str, w: Waypoints) -> None:
+        _number(value, where, w, low=low, high=high, low_open=low_open)
+
+    return check
 
 
-def positive(value: Any, where: str, w: Waypoints) -> None:
-    if _number(value, where, w) <= 0:
-        raise w.fail(where, "must be > 0")
+number = ranged(-POSITION_MAX, POSITION_MAX)
+positive = ranged(0.0, POSITION_MAX, low_open=True)
+duration = ranged(0.0, DURATION_MAX, low_open=True)
+"""A step's duration or settle time (s): above 0 and at most DURATION_MAX."""
+seconds = ranged(0.0, DURATION_MAX)
+"""A wait or a hold (s): 0 .. DURATION_MAX."""
+speed = ranged(0.0, SPEED_MAX, low_open=True)
+degrees = ranged(-360.0, 360.0)
 
 
-def nonnegative(value: Any, where: str, w: Waypoints) -> None:
-    _number(value, where, w, low=0)
+def count(high: int, low: int = 0) -> Check:
+    """A check of a whole number in [low, high]."""
 
+    def check(value: Any, where: str, w: Waypoints) -> None:
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            shown = excerpt(str(value), 40)
+            raise w.fail(where, f"'{shown}' is not a whole number from {low} to {high}")
 
-def count(value: Any, where: str, w: Waypoints) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise w.fail(where, f"'{value}' is not a whole number >= 0")
+    return check
 
 
 def flag(value: Any, where: str, w: Waypoints) -> None:
@@ -68,14 +122,36 @@ def name(value: Any, where: str, w: Waypoints) -> None:
         raise w.fail(where, f"'{value}' is not a name")
 
 
-def numbers(n: int | None = None) -> Check:
+def numbers(
+    n: int | None = None,
+    low: float = -POSITION_MAX,
+    high: float = POSITION_MAX,
+    *,
+    low_open: bool = False,
+    nonzero: bool = False,
+) -> Check:
+    """A check of a list of numbers (``n`` of them), each in [low, high]; ``nonzero``: a
+    direction or a quaternion, which must not be all zeros (it is normalised)."""
+
     def check(value: Any, where: str, w: Waypoints) -> None:
         if not isinstance(value, list) or (n is not None and len(value) != n):
             raise w.fail(where, f"needs a list of {n} numbers" if n else "needs a list of numbers")
-        for i, v in enumerate(value):
-            _number(v, f"{where}[{i}]", w)
+        if n is None and len(value) > JOINTS_MAX:
+            raise w.fail(where, f"has {len(value)} numbers; at most {JOINTS_MAX}")
+        xs = [
+            _number(v, f"{where}[{i}]", w, low=low, high=high, low_open=low_open)
+            for i, v in enumerate(value)
+        ]
+        if nonzero and math.hypot(*xs) < 1e-9:
+            raise w.fail(where, "is all zeros; it needs a direction")
 
     return check
+
+
+JOINTS_MAX = 1_000
+"""Most numbers in a list of joint values (q, arm, seed, vmax, ik_weights)."""
+joints = numbers(None, -JOINT_MAX, JOINT_MAX)
+axis = numbers(3, nonzero=True)
 
 
 def pairs(value: Any, where: str, w: Waypoints) -> None:
@@ -90,15 +166,21 @@ def joint_values(value: Any, where: str, w: Waypoints) -> None:
     if not isinstance(value, Mapping) or not value:
         raise w.fail(where, "needs a mapping of joint name to value")
     for k, v in value.items():
-        _number(v, f"{where}.{k}", w)
+        _number(v, f"{where}.{k}", w, low=-JOINT_MAX, high=JOINT_MAX)
+
+
+OPENING_MAX = 1.0
+"""m: the widest gripper opening a step may ask for."""
 
 
 def action(value: Any, where: str, w: Waypoints) -> None:
     if value not in ("open", "close"):
         try:
-            _number(value, where, w)
+            _number(value, where, w, low=0.0, high=OPENING_MAX)
         except FacilityError:
-            raise w.fail(where, f"'{value}' is not open, close or an opening (m)") from None
+            shown = excerpt(str(value), 40)
+            message = f"'{shown}' is not open, close or an opening (0 .. {OPENING_MAX:g} m)"
+            raise w.fail(where, message) from None
 
 
 def check_spec(value: Any, where: str, w: Waypoints) -> None:
@@ -108,14 +190,15 @@ def check_spec(value: Any, where: str, w: Waypoints) -> None:
 def _joint_above(value: Any, where: str, w: Waypoints) -> None:
     if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], str)):
         raise w.fail(where, "needs [joint name, degrees]")
-    _number(value[1], f"{where}[1]", w)
+    degrees(value[1], f"{where}[1]", w)
 
 
 def placements(value: Any, where: str, w: Waypoints) -> None:
     if not isinstance(value, Mapping) or not value:
         raise w.fail(where, "needs a mapping of component to {xyz, yaw}")
+    keys = {"xyz": numbers(3, -LENGTH_MAX, LENGTH_MAX), "yaw": ranged(-ANGLE_MAX, ANGLE_MAX)}
     for comp, pose in value.items():
-        _mapping(pose, f"{where}.{comp}", w, {"xyz": numbers(3), "yaw": number}, ("xyz", "yaw"))
+        _mapping(pose, f"{where}.{comp}", w, keys, ("xyz", "yaw"))
 
 
 def section(keys: dict[str, Check], required: tuple[str, ...] = ()) -> Check:
@@ -132,12 +215,18 @@ def _mapping(
         raise w.fail(where, "needs a mapping of keys to values")
     unknown = sorted(str(k) for k in value if k not in keys)
     if unknown:
-        raise w.fail(f"{where}.{unknown[0]}", f"unknown key; valid: {', '.join(keys)}")
+        bad = excerpt(unknown[0], 60)
+        raise w.fail(_join(where, bad), f"unknown key; valid: {', '.join(keys)}")
     for key in required:
         if key not in value:
-            raise w.fail(f"{where}.{key}", "is required")
+            raise w.fail(_join(where, key), "is required")
     for key, v in value.items():
-        keys[key](v, f"{where}.{key}", w)
+        keys[key](v, _join(where, key), w)
+
+
+def _join(where: str, key: str) -> str:
+    """A key below ``where`` (a top-level key is its own name: its line is found)."""
+    return f"{where}.{key}" if where else key
 
 
 COMMON: dict[str, Check] = {
@@ -146,27 +235,27 @@ COMMON: dict[str, Check] = {
     "contacts": pairs,
     "carried": flag,
     "settle": flag,
-    "settle_timeout": positive,
-    "speed": positive,
+    "settle_timeout": duration,
+    "speed": speed,
     "snapshot": flag,
     "check": check_spec,
-    "duration": positive,
+    "duration": duration,
 }
 KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
     "joints": (
-        {"q": numbers(), "arm": numbers(), "set": joint_values, "relative_to": name}, ()
+        {"q": joints, "arm": joints, "set": joint_values, "relative_to": name}, ()
     ),
     "pose": (
         {
             "position": numbers(3),
             "frame": name,
-            "z": numbers(3),
-            "x": numbers(3),
+            "z": axis,
+            "x": axis,
             "x_sign_free": flag,
-            "orientation_xyzw": numbers(4),
+            "orientation_xyzw": numbers(4, nonzero=True),
             "site": name,
             "joint_space": flag,
-            "seed": numbers(),
+            "seed": joints,
             "relative_to": name,
         },
         ("position",),
@@ -175,27 +264,49 @@ KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
     "hinge": (
         {
             "joint": name,
-            "steps": count,
-            "step_deg": number,
+            "steps": count(HINGE_STEPS_MAX, 1),
+            "step_deg": degrees,
             "hold_orientation": flag,
-            "step_time": positive,
+            "step_time": duration,
         },
         ("joint",),
     ),
-    "gripper": ({"action": action, "seconds": nonnegative}, ("action",)),
-    "look": ({"camera": name, "min_pixels": count, "border_px": count}, ()),
-    "localize": ({"component": name, "camera": name, "min_tags": count}, ("component",)),
-    "wait": ({"seconds": nonnegative}, ("seconds",)),
-}
-TOP: dict[str, Check] = {
-    "robot": section({"site": name, "vmax": numbers(), "ik_weights": numbers()}),
-    "bag": section({"body": name, "geom": name}, ("body", "geom")),
-    "stowage": section({"body": name, "inside": numbers(3)}, ("body", "inside")),
-    "perception": section({"size": numbers(2)}),
-    "view": section(
-        {"lookat": numbers(3), "distance": positive, "azimuth": number, "elevation": number}
+    "gripper": ({"action": action, "seconds": seconds}, ("action",)),
+    "look": (
+        {"camera": name, "min_pixels": count(PIXELS_MAX), "border_px": count(IMAGE_MAX)}, ()
     ),
-    "final_wait": nonnegative,
+    "localize": (
+        {"component": name, "camera": name, "min_tags": count(TAG_COUNT)}, ("component",)
+    ),
+    "wait": ({"seconds": seconds}, ("seconds",)),
+}
+
+
+def image_size(value: Any, where: str, w: Waypoints) -> None:
+    """[height, width] in pixels: whole numbers, 1 .. IMAGE_MAX."""
+    if not isinstance(value, list) or len(value) != 2:
+        raise w.fail(where, "needs [height, width] (pixels)")
+    for i, v in enumerate(value):
+        count(IMAGE_MAX, 1)(v, f"{where}[{i}]", w)
+
+
+TOP: dict[str, Check] = {
+    "robot": section(
+        {
+            "site": name,
+            "vmax": numbers(None, 0.0, SPEED_MAX, low_open=True),
+            "ik_weights": numbers(None, 0.0, 1e6, nonzero=True),
+        }
+    ),
+    "bag": section({"body": name, "geom": name}, ("body", "geom")),
+    "stowage": section(
+        {"body": name, "inside": numbers(3, 0.0, POSITION_MAX, low_open=True)}, ("body", "inside")
+    ),
+    "perception": section({"size": image_size}),
+    "view": section(
+        {"lookat": numbers(3), "distance": positive, "azimuth": degrees, "elevation": degrees}
+    ),
+    "final_wait": seconds,
     "nominal": placements,
     "contacts": pairs,
     "steps": lambda v, where, w: None,  # checked step by step below
@@ -213,10 +324,12 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
     w = Waypoints(path, source)
     if not isinstance(spec, Mapping):
         raise w.fail("waypoints", "a waypoints file is a mapping with steps, bag and stowage")
-    _mapping(spec, "waypoints", w, TOP, ("bag", "stowage", "steps"))
+    _mapping(spec, "", w, TOP, ("bag", "stowage", "steps"))
     steps = spec["steps"]
     if not isinstance(steps, list) or not steps:
         raise w.fail("steps", "needs a non-empty list of steps")
+    if len(steps) > STEPS_MAX:
+        raise w.fail("steps", f"has {len(steps)} steps; at most {STEPS_MAX}")
     seen: set[str] = set()
     for i, step in enumerate(steps):
         at = _step_at(i, step)
@@ -235,7 +348,19 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
         _mapping(step, at, w, {**COMMON, **keys}, required)
         if ("z" in step) != ("x" in step):
             raise w.fail(at, "give both tool axes z and x, or neither")
+        if "z" in step and _parallel(step["z"], step["x"]):
+            raise w.fail(f"{at}.x", "is parallel to z; the tool axes need two directions")
     return dict(spec)
+
+
+def _parallel(z: list[float], x: list[float]) -> bool:
+    """Whether two (checked, non-zero) directions are parallel: no frame between them."""
+    cross = (
+        z[1] * x[2] - z[2] * x[1],
+        z[2] * x[0] - z[0] * x[2],
+        z[0] * x[1] - z[1] * x[0],
+    )
+    return math.hypot(*cross) <= 1e-6 * math.hypot(*z) * math.hypot(*x)
 
 
 def read_waypoints(path: str | Path) -> dict:
@@ -245,11 +370,25 @@ def read_waypoints(path: str | Path) -> dict:
     return check_shape(data, Path(path), source)
 
 
+def _check_model(fac: Any) -> None:
+    """The facility's timestep is one a recipe may give: every duration above becomes
+    ``seconds / timestep`` steps (a hand-edited scene.xml could make that endless)."""
+    dt = float(fac.model.opt.timestep)
+    low, high = TIMESTEP_RANGE
+    if not low <= dt <= high:
+        raise FacilityError(
+            f"timestep {dt:g} s is out of range ({low:g} to {high:g})",
+            file=Path(fac.folder) / "scene.xml",
+            element="option timestep",
+        )
+
+
 def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
     """Every name and vector length in ``spec`` against the loaded facility ``fac``
     (a :class:`urdf2mjcf.runner.load.Facility`)."""
     w = Waypoints(path)
     m, robot = fac.model, fac.robot
+    _check_model(fac)
     n = len(robot.joints)
     obj = mujoco.mjtObj
 
@@ -261,6 +400,11 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
         if len(value) != want:
             raise w.fail(where, f"has {len(value)} values; the robot needs {want}")
 
+    size = spec.get("perception", {}).get("size")
+    g = m.vis.global_
+    if size and (size[0] > g.offheight or size[1] > g.offwidth):
+        message = f"{size[0]} x {size[1]} is larger than the model's offscreen buffer, "
+        raise w.fail("perception.size", message + f"{g.offheight} x {g.offwidth}")
     rs = spec.get("robot", {})
     site = rs.get("site", "grasp")
     if site not in robot.sites:

@@ -23,6 +23,19 @@ def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
         raise RoverError(str(exc)) from None
 
 
+LENGTH_MAX = 100.0
+"""m: the largest wheel radius or track a roles file may give."""
+
+
+def _length(value: object, rover: str, key: str) -> float:
+    """A wheel radius or track from facility.json: a finite length in (0, LENGTH_MAX];
+    every wheel command divides by it."""
+    x = float(value)  # type: ignore[arg-type]  # TypeError/ValueError: malformed roles
+    if not 0.0 < x <= LENGTH_MAX:  # also NaN
+        raise RoverError(f"{rover}: {key} {x:g} m is not above 0 and at most {LENGTH_MAX:g}")
+    return x
+
+
 def _sensor_adr(m: mujoco.MjModel, name: str) -> int:
     return int(m.sensor_adr[_id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)])
 
@@ -72,6 +85,8 @@ def find_rovers(m: mujoco.MjModel, manifest: Mapping) -> dict[str, Rover]:
         lo = float(max(m.actuator_ctrlrange[np.r_[left, right], 0]))
         hi = float(min(m.actuator_ctrlrange[np.r_[left, right], 1]))
         imu = roles["imu"]
+        radius = _length(roles["wheel_radius"], name, "wheel_radius")
+        track = _length(roles["track"], name, "track")
         out[name] = Rover(
             name=name,
             prefix=comp.get("prefix", ""),
@@ -80,8 +95,8 @@ def find_rovers(m: mujoco.MjModel, manifest: Mapping) -> dict[str, Rover]:
             right=right,
             left_vel=np.array([_sensor_adr(m, s) for s in roles["wheel_sensors"]["left"]]),
             right_vel=np.array([_sensor_adr(m, s) for s in roles["wheel_sensors"]["right"]]),
-            radius=float(roles["wheel_radius"]),
-            track=float(roles["track"]),
+            radius=radius,
+            track=track,
             arm=np.array([_id(m, A, a) for a in roles["arm_actuators"]]),
             arm_qpos=np.array(
                 [m.jnt_qposadr[_id(m, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in roles["arm_joints"]]

@@ -9,6 +9,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from ...facility.values import TIMESTEP_RANGE
 from ..load import LoadError, open_facility
 from .odometry import Odometry, rotation_matrix, true_pose, yaw_of
 from .report import TaskReport, _Track
@@ -17,6 +18,10 @@ from .tasks import ArmWave, Task
 
 HOLD_GAIN = 10.0
 """Wheel hold (brake): commanded wheel speed per radian of wheel drift, 1/s."""
+SETTLE_MAX = 60.0
+"""s: the longest settle (``rover-drive --settle``)."""
+TASK_TIMEOUT = 120.0
+"""s simulated: a task not done by then is an error (every task's step count is bounded)."""
 
 
 class RoverSim:
@@ -33,6 +38,14 @@ class RoverSim:
             ) from None
         except LoadError as exc:
             raise RoverError(exc.detail, file=path, element="components.*.roles") from None
+        dt = float(self.m.opt.timestep)
+        low, high = TIMESTEP_RANGE
+        if not low <= dt <= high:  # a hand-edited scene: every step count below divides by it
+            raise RoverError(
+                f"timestep {dt:g} s is out of range ({low:g} to {high:g})",
+                file=self.folder / "scene.xml",
+                element="option timestep",
+            )
         if not self.rovers:
             raise RoverError(
                 "the facility has no rover (no component with wheel roles); "
@@ -120,7 +133,10 @@ class RoverSim:
                 f()
 
     def settle(self, seconds: float = 1.0) -> None:
-        """Stand still (wheels held, arm at its targets) for ``seconds``; odometry restarts."""
+        """Stand still (wheels held, arm at its targets) for ``seconds`` (0 .. SETTLE_MAX);
+        odometry restarts."""
+        if not 0.0 <= seconds <= SETTLE_MAX:  # also NaN
+            raise RoverError(f"settle {seconds} s is not from 0 to {SETTLE_MAX:g} s")
         for _ in range(int(round(seconds / self.dt))):
             for r in self.rovers.values():
                 self.brake(r)
@@ -138,7 +154,7 @@ class RoverSim:
         self,
         tasks: Mapping[str, Task],
         arm: Mapping[str, ArmWave] | None = None,
-        timeout: float = 120.0,
+        timeout: float = TASK_TIMEOUT,
         on_step: Callable[[RoverSim], None] | None = None,
     ) -> dict[str, TaskReport]:
         """Run one task per rover at the same time until all are done; return a report per
