@@ -196,35 +196,34 @@ def test_strap_stiffness_from_the_command_line_is_checked(tmp_path):
     _refused(tmp_path, IMETRO, "--set", "strap_stiffness=-5", needles=("flags.strap_stiffness",))
 
 
-def test_an_iterations_option_the_world_ignores_is_refused_not_dropped(tmp_path):
-    """The iMETRO world's xacro takes no ``iterations``: the recipe's is refused, after
-    the build, with nothing installed."""
-    recipe = _recipe(tmp_path, IMETRO, (r"^  impratio: 10$", "  impratio: 10\n  iterations: 7"))
-    out = tmp_path / "out"
-    res = run(
-        "make-facility",
-        str(recipe),
-        "--root",
-        str(ROOT),
-        "-o",
-        str(out),
-        "--no-components",
-        cwd=tmp_path,
-        timeout=300,
-    )
-    assert_one_error(res, "simulation.iterations", "does not set option 'iterations'")
-    assert not out.exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["attack.yaml"]
+def test_an_option_a_world_ignores_is_refused_not_dropped(tmp_path):
+    """A world xacro that does not pass a recipe's ``simulation:`` option to ``<option>``
+    would build with MuJoCo's default: the manifest's check refuses it, naming the key."""
+    import mujoco
+
+    from urdf2mjcf.errors import InputError
+    from urdf2mjcf.facility.manifest import check_simulation
+    from urdf2mjcf.facility.recipe import load_recipe
+
+    recipe = load_recipe(IMETRO, {"simulation.iterations": "7"}, ROOT)
+    options = {k: v for k, v in recipe.simulation.items() if k != "iterations"}
+    attrs = " ".join(f'{k}="{v}"' for k, v in options.items())
+    ignoring = mujoco.MjModel.from_xml_string(f"<mujoco><option {attrs}/><worldbody/></mujoco>")
+    with pytest.raises(InputError, match="does not set option 'iterations'") as err:
+        check_simulation(ignoring, recipe)
+    assert err.value.element == "simulation.iterations"
 
 
-def test_an_iterations_option_the_world_takes_is_in_the_built_model(tmp_path):
-    """The MIRA3D world passes ``iterations`` to ``<option>``: the built model has it."""
+@pytest.mark.parametrize("recipe", ["imetro.yaml", "mira3d-floor.yaml"])
+def test_an_iterations_option_is_in_the_built_model(tmp_path, recipe):
+    """Both worlds pass ``iterations`` to ``<option>`` (it was silently ignored in the
+    iMETRO world): the built model has it."""
     import mujoco
 
     out = tmp_path / "out"
     res = run(
         "make-facility",
-        str(MOON.with_name("mira3d-floor.yaml")),
+        str(IMETRO.with_name(recipe)),
         "--root",
         str(ROOT),
         "-o",
