@@ -155,3 +155,55 @@ def test_cache_command_errors_are_one_line(args, needle, tmp_path):
     assert proc.returncode == 2
     lines = proc.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and needle in lines[0], proc.stderr
+
+
+# -- the marker: we delete only what we wrote ---------------------------------------------
+
+TAG_FIRST_LINE = "Signature: 8a477f597d28d172789f06886806bc55"
+
+
+def test_the_first_write_marks_the_cache_with_a_cachedir_tag(filled):
+    lines = (filled / "CACHEDIR.TAG").read_text().splitlines()
+    assert lines[0] == TAG_FIRST_LINE  # the Cache Directory Tagging spec: backup tools skip it
+    assert lines[1].startswith("#") and "urdf2mjcf" in lines[1]
+
+
+def test_an_older_versions_cache_is_marked_when_written_and_cleared_after(tmp_path):
+    root = tmp_path / "cache"
+    urdf = make_robot(tmp_path / "robot")
+    urdf2mjcf.convert(urdf, tmp_path / "a" / "robot.xml", use_environment=False, cache_dir=root)
+    (root / "CACHEDIR.TAG").unlink()  # as an older version left it: entries, no marker
+    proc = urdf2mjcf_cli("cache", "clear", "--cache-dir", str(root), cwd=tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "CACHEDIR.TAG" in proc.stderr, proc.stderr
+    assert "delete the folder yourself" in proc.stderr and TAG_FIRST_LINE in proc.stderr
+    assert on_disk(root)["meshes"][0] == 2, "nothing deleted"
+    info = urdf2mjcf_cli("cache", "info", "--cache-dir", str(root), cwd=tmp_path)
+    assert info.returncode == 0 and "not a cache of ours" in info.stdout
+    # its kind folders hold only entries named as ours: the next write marks it
+    (tmp_path / "robot" / "meshes" / "u_shape.stl").write_bytes(
+        (MESHES / "box.stl").read_bytes()
+    )
+    urdf2mjcf.convert(urdf, tmp_path / "b" / "robot.xml", use_environment=False, cache_dir=root)
+    assert (root / "CACHEDIR.TAG").read_text().startswith(TAG_FIRST_LINE)
+    proc = urdf2mjcf_cli("cache", "clear", "--cache-dir", str(root), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert on_disk(root) == {k: (0, 0) for k in KINDS}
+
+
+def test_a_folder_of_other_files_is_used_and_marked_but_one_with_foreign_entries_is_not(
+    tmp_path,
+):
+    urdf = make_robot(tmp_path / "robot")
+    other = tmp_path / "other"  # files, but none of our kind folders: used and marked
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    urdf2mjcf.convert(urdf, tmp_path / "a" / "robot.xml", use_environment=False, cache_dir=other)
+    assert (other / "CACHEDIR.TAG").is_file() and (other / "notes.txt").read_text() == "mine"
+    mixed = tmp_path / "mixed"  # a 'meshes' folder with files we did not name: not marked
+    (mixed / "meshes").mkdir(parents=True)
+    (mixed / "meshes" / "arm.stl").write_bytes((MESHES / "box.stl").read_bytes())
+    urdf2mjcf.convert(urdf, tmp_path / "b" / "robot.xml", use_environment=False, cache_dir=mixed)
+    assert not (mixed / "CACHEDIR.TAG").exists()
+    assert (mixed / "meshes" / "arm.stl").read_bytes() == (MESHES / "box.stl").read_bytes()
+    assert on_disk(mixed)["meshes"][0] == 2, "still used as a cache (never evicted from)"

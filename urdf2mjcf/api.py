@@ -75,8 +75,14 @@ def make_options(
     scene: bool = True,
     validate_model: bool = True,
     overwrite: bool = False,
+    trust_xacro: bool | None = None,
 ) -> ConvertOptions:
-    """Keyword options (as :func:`convert` takes them) -> :class:`ConvertOptions`."""
+    """Keyword options (as :func:`convert` takes them) -> :class:`ConvertOptions`.
+
+    ``trust_xacro`` runs a description's code as ROS's xacro does; ``None`` takes it
+    from ``$URDF2MJCF_TRUST_XACRO`` (default: expressions are checked)."""
+    from .passes.xacro_guard import trust_from_env
+
     return ConvertOptions(
         xacro=xacro.XacroConfig(
             args=dict(args or {}),
@@ -84,6 +90,7 @@ def make_options(
             package_paths=tuple(Path(p) for p in package_paths),
             use_environment=use_environment,
             strict=strict,
+            trust=trust_from_env() if trust_xacro is None else trust_xacro,
         ),
         parse=parse.ParseConfig(strict=strict, free_root=floating_base),
         meshes=meshes.MeshConfig(

@@ -38,6 +38,7 @@ from typing import Any
 import click
 
 from . import output as out
+from .cli_types import BoundedInt
 from .errors import ConversionError, InputError
 from .runner.executors import EXECUTORS, Kind, import_ray, run_jobs
 
@@ -259,6 +260,7 @@ SHARED_OPTIONS = (
     "floating_base",
     "no_scene",
     "strict",
+    "trust_xacro",
     "no_validate",
     "cache_dir",
     "no_cache",
@@ -293,6 +295,7 @@ def _options(kw: dict[str, Any]) -> dict[str, Any]:
         "floating_base": kw["floating_base"],
         "scene": not kw["no_scene"],
         "strict": kw["strict"],
+        "trust_xacro": True if kw["trust_xacro"] else None,  # None: $URDF2MJCF_TRUST_XACRO
         "validate_model": not kw["no_validate"],
         "cache_dir": kw["cache_dir"],
         "use_cache": not kw["no_cache"],
@@ -381,7 +384,7 @@ def _make_command() -> click.Command:
         ),
         click.Option(
             ["--workers"],
-            type=click.IntRange(min=1),
+            type=BoundedInt(1, 1024),
             help="Parallel conversions: processes of the local pool, or CPUs of a Ray instance "
             "started here (default: one per robot, at most 8).",
         ),

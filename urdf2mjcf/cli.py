@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import os
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Iterable
 from pathlib import Path
@@ -16,11 +18,16 @@ from typing import Any
 import click
 
 from . import headless
+from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .errors import ConversionError
 from .ir import Note
 from .passes.collision import CollisionConfig
 from .passes.inertia import InertiaConfig
 from .passes.meshes import MeshConfig
+from .untrusted import printable
+
+DENSITY = FiniteFloat(0.0, 1e6, low_open=True)
+"""kg/m^3: above 0 (nothing is massless by density), at most 1e6 (osmium is 2.3e4)."""
 
 
 def _configure_logging(verbose: int, quiet: bool) -> None:
@@ -65,7 +72,9 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
     """Warnings, repairs and decimations always; everything else with -v."""
     for note in notes:
         if note.kind in ("warning", "repaired", "decimated") or verbose:
-            click.echo(f"{note.kind}: {note.element}: {note.message}", err=True)
+            # a note may quote a file or a cache entry: no escape codes reach the terminal
+            line = printable(f"{note.kind}: {note.element}: {note.message}")
+            click.echo(line, err=True)
 
 
 def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
@@ -104,7 +113,7 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
 @click.option(
     "--density",
-    type=float,
+    type=DENSITY,
     default=InertiaConfig.density,
     show_default=True,
     help="kg/m^3 for links with geometry but no inertial.",
@@ -112,6 +121,7 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option(
     "--link-density",
     multiple=True,
+    type=KeyedFloat(DENSITY, "LINK"),
     metavar="LINK=KG_PER_M3",
     help="Per-link density override (repeatable).",
 )
@@ -144,6 +154,12 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     "--strict", is_flag=True, help="A missing or unreadable visual mesh is an error, not a warning."
 )
 @click.option(
+    "--trust-xacro",
+    is_flag=True,
+    help="Run the description's code, as ROS's xacro does (expressions are otherwise "
+    "checked: see docs/security.md)",
+)
+@click.option(
     "--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo."
 )
 @click.option(
@@ -153,11 +169,15 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 )
 @click.option("--no-cache", is_flag=True, help="Neither read nor write the cache.")
 @click.option(
-    "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
+    "-j",
+    "--jobs",
+    type=BoundedInt(0, 1024),
+    default=0,
+    help="Parallel decompositions (0 = one per CPU; at most 1024).",
 )
 @click.option(
     "--decompose-timeout",
-    type=click.FloatRange(min=0),
+    type=FiniteFloat(0, 1e6),
     default=CollisionConfig.timeout,
     show_default=True,
     help="Seconds one mesh's convex decomposition may take (0 = no limit); "
@@ -165,10 +185,10 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 )
 @click.option(
     "--max-faces",
-    type=int,
+    type=BoundedInt(4, 10_000_000),
     default=MeshConfig.max_faces,
     show_default=True,
-    help="Decimate meshes above this face count.",
+    help="Decimate meshes above this face count (4 to 10,000,000).",
 )
 @click.option(
     "--report",
@@ -186,7 +206,7 @@ def urdf2mjcf_command(
     packages: tuple[str, ...],
     no_ros_env: bool,
     density: float,
-    link_density: tuple[str, ...],
+    link_density: tuple[tuple[str, float], ...],
     collision_source: str,
     actuator_config: Path | None,
     gravcomp: bool,
@@ -198,6 +218,7 @@ def urdf2mjcf_command(
     no_scene: bool,
     overwrite: bool,
     strict: bool,
+    trust_xacro: bool,
     no_validate: bool,
     cache_dir: Path | None,
     no_cache: bool,
@@ -216,18 +237,23 @@ def urdf2mjcf_command(
     The cache: 'urdf2mjcf cache info|clear'.
     """
     from . import api  # keep `--help` fast
-    from .output import check_file, write_json
+    from . import output as out
 
     _configure_logging(verbose, quiet)
     if report_path:
         if report_path.resolve() == Path(output).resolve():
             raise click.BadParameter("is the MJCF output file", param_hint="--report")
-        check_file(report_path, overwrite, "urdf2mjcf")  # before the work, not after
-    try:
-        densities = {k: float(v) for k, v in _pairs(link_density, "=", "LINK=DENSITY").items()}
-    except ValueError:
-        raise click.BadParameter("density must be a number", param_hint="--link-density") from None
-    with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
+        out.check_file(report_path, overwrite, "urdf2mjcf")  # before the work, not after
+    densities = dict(link_density)  # (LINK, checked number) pairs: see KeyedFloat
+    # All or nothing: the report's file is made before the work (a folder we cannot write
+    # in fails here), the MJCF files are installed only once the report is written, and
+    # undone if its rename fails.
+    slot = out.reserved_file(report_path) if report_path else contextlib.nullcontext(None)
+    with (
+        _Progress(enabled=not quiet and sys.stderr.isatty()) as progress,
+        slot as reserved,
+        out.together() as batch,
+    ):
         options = api.make_options(
             args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
             package_paths=package_path,
@@ -253,18 +279,27 @@ def urdf2mjcf_command(
             scene=not no_scene,
             validate_model=not no_validate,
             overwrite=overwrite,
+            trust_xacro=True if trust_xacro else None,  # None: $URDF2MJCF_TRUST_XACRO
         )
         report = api.convert(source, output, options)
-    if report_path:
-        write_json(report_path, report.to_dict(), "urdf2mjcf")
+        if reserved is not None:
+            reserved.write(out.json_bytes(report.to_dict(), "urdf2mjcf"))
+            batch.last(reserved.commit)
     if not quiet:
         _echo_notes(report.notes, verbose)
         click.echo(f"wrote {output}")
         click.echo(report.summary())
 
 
+ERROR_LINE_MAX = 2000
+"""Characters of an error message printed (a message quoting a file is cut there)."""
+
+
 def _one_line(text: str) -> str:
-    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+    """``text`` on one line, control characters escaped, at most ERROR_LINE_MAX long."""
+    line = "; ".join(part.strip() for part in str(text).splitlines() if part.strip())
+    line = printable(line)
+    return line if len(line) <= ERROR_LINE_MAX else line[: ERROR_LINE_MAX - 3] + "..."
 
 
 def _add_debug_option(command: click.Command) -> None:
@@ -317,12 +352,16 @@ def run_command(
         sys.exit(2)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except click.Abort:
+    except KeyboardInterrupt:  # Ctrl-C: like SIGTERM, the staged output was removed
+        _interrupted(command.name)
+    except click.Abort as exc:
+        if isinstance(exc.__context__, KeyboardInterrupt):  # click's own Ctrl-C
+            _interrupted(command.name)
         click.echo("error: aborted", err=True)
         sys.exit(2)
     except click.UsageError as exc:
         hint = f" (see '{command.name} --help')"
-        click.echo(f"error: {exc.format_message()}{hint}", err=True)
+        click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
         sys.exit(2)
     except click.ClickException as exc:
         click.echo(f"error: {_one_line(exc.format_message())}", err=True)
@@ -354,6 +393,11 @@ def run_command(
     sys.exit(0)
 
 
+def _interrupted(name: str | None) -> None:
+    click.echo(f"error: {name} interrupted (Ctrl-C); its unfinished output removed", err=True)
+    sys.exit(128 + signal.SIGINT)
+
+
 class Terminated(BaseException):
     """SIGTERM, raised in the main thread: like Ctrl-C, it unwinds every staged
     output folder and file (their cleanup runs on any exception), which the default
@@ -366,12 +410,20 @@ class _SigtermHandler:
     how to put the previous handler back."""
 
     received: bool = False
+    at: float = 0.0
     previous: Any = None
     installed: bool = False
 
     def restore(self) -> None:
         if self.installed:
-            signal.signal(signal.SIGTERM, self.previous)
+            # Terminated: exiting now; another SIGTERM must not kill us mid-way (atexit
+            # cleanup skipped: semaphores leaked, a message on stderr)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN if self.received else self.previous)
+
+
+SIGTERM_GRACE = 10.0
+"""Seconds after a SIGTERM in which another is ignored: the first one's unwinding (workers
+stopped, staged output removed) runs to its end, never cut short into orphans."""
 
 
 def _terminate_cleanly() -> _SigtermHandler:
@@ -388,7 +440,9 @@ def _terminate_cleanly() -> _SigtermHandler:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
             os.kill(os.getpid(), signal.SIGTERM)
             return
-        state.received = True
+        if state.received and time.monotonic() - state.at < SIGTERM_GRACE:
+            return  # already unwinding: a second SIGTERM must not cut its cleanup short
+        state.received, state.at = True, time.monotonic()
         raise Terminated()
 
     state.previous = signal.signal(signal.SIGTERM, handler)
@@ -452,7 +506,13 @@ def cache_info_command(cache_dir: Path | None) -> None:
     from . import cache
 
     info = cache.info(_cache_root(cache_dir))
-    click.echo(f"cache: {info.root}" + ("" if info.root.is_dir() else " (not created yet)"))
+    where = printable(str(info.root))
+    click.echo(f"cache: {where}" + ("" if info.root.is_dir() else " (not created yet)"))
+    if info.root.is_dir() and not info.ours:
+        click.echo(
+            f"  not a cache of ours: no {cache.TAG_NAME} of urdf2mjcf "
+            "('cache clear' refuses it; conversions never evict from it)"
+        )
     for k in info.kinds:
         click.echo(f"  {k.description} ({k.kind}/): {k.entries} entries, {_mb(k.bytes)}")
     limit = "none" if info.limit is None else _mb(info.limit)
@@ -462,12 +522,15 @@ def cache_info_command(cache_dir: Path | None) -> None:
 @cache_group.command("clear")
 @_CACHE_DIR_OPTION
 def cache_clear_command(cache_dir: Path | None) -> None:
-    """Delete every cache entry (files in the folder that are not entries stay)."""
+    """Delete every cache entry (files in the folder that are not entries stay).
+
+    Only a folder marked with our CACHEDIR.TAG is cleared, and only files named as
+    we name entries; symlinks are never followed."""
     from . import cache
 
     root = _cache_root(cache_dir)
     count, size = cache.clear(root)
-    click.echo(f"removed {count} entries, {_mb(size)}, from {root}")
+    click.echo(f"removed {count} entries, {_mb(size)}, from {printable(str(root))}")
 
 
 DEFAULT_RECIPE = "recipes/imetro.yaml"
@@ -490,7 +553,10 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
     help="Change the recipe: a flag (hatch_4040=true) or a dotted field (jitter.ctb.yaw=0.2).",
 )
 @click.option(
-    "--seed", type=int, help="Seed for the recipe's pose uncertainty (none: nominal poses)."
+    "--seed",
+    type=BoundedInt(0, 2**32 - 1),
+    help="Seed for the recipe's pose uncertainty and its rocks, 0 .. 2**32-1 "
+    "(none: nominal poses).",
 )
 @click.option(
     "--root",
@@ -505,7 +571,11 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
     help="Build into a non-empty folder that is not an earlier build (its other files are kept).",
 )
 @click.option(
-    "-j", "--jobs", type=int, default=0, help="Parallel decompositions (0 = one per CPU)."
+    "-j",
+    "--jobs",
+    type=BoundedInt(0, 1024),
+    default=0,
+    help="Parallel decompositions, 0 .. 1024 (0 = one per CPU).",
 )
 @click.option(
     "--cache-dir",

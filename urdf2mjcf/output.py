@@ -29,7 +29,8 @@ from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from .errors import OutputError
+from .errors import ConversionError, OutputError
+from .untrusted import read_file
 
 log = logging.getLogger(__name__)
 
@@ -337,9 +338,11 @@ def write_atomic(
 
 
 def _json_object(path: Path) -> dict | None:
+    """The JSON object in ``path``, or None: also when it is not a regular file (a FIFO
+    at an output path must not block us) or is over the report size limit."""
     try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError):
+        data = json.loads(read_file(path, "report").decode("utf-8"))
+    except (ConversionError, OSError, UnicodeDecodeError, ValueError):
         return None
     return data if isinstance(data, dict) else None
 

@@ -29,7 +29,7 @@ LIMITS_MB: dict[str, tuple[float, str]] = {
     "mesh": (512, "a mesh file (STL, OBJ, DAE, PLY) and the files it pulls in (.mtl)"),
     "texture": (256, "an image file a material or an MJCF asset names"),
     "yaml": (16, "a recipe, actuator config, waypoints or component YAML file"),
-    "cache": (2048, "one cache entry"),
+    "cache_entry": (2048, "one cache entry (the whole cache: $URDF2MJCF_CACHE_MAX_MB)"),
     "report": (64, "a JSON file we read back (an earlier manifest or report)"),
 }
 """Each kind of file's default size limit in MB, and what it covers."""
@@ -284,4 +284,19 @@ def is_plain_name(name: Any, *, max_length: int = 255) -> bool:
         and _PLAIN.fullmatch(name) is not None
         and name.strip(".") != ""
         and ".." not in name
+    )
+
+
+_FOLDER_NAME = re.compile(r"[A-Za-z0-9_.-]+")
+
+
+def is_folder_name(name: Any, *, max_length: int = 255) -> bool:
+    """Whether ``name`` may name a folder we make beside others (a recipe's ``name``:
+    ``build/<name>``): letters, digits, ``-``, ``_`` and ``.``, not only dots, not empty
+    or too long. Unlike :func:`is_plain_name`, no ``+`` (exactly the documented rule)."""
+    return (
+        isinstance(name, str)
+        and 0 < len(name) <= max_length
+        and _FOLDER_NAME.fullmatch(name) is not None
+        and name.strip(".") != ""
     )

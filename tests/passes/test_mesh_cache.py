@@ -199,17 +199,20 @@ def test_least_recently_used_entries_go_first(tmp_path, monkeypatch):
     root = tmp_path / "cache"
     blob = bytes(100_000)
     now = time.time()
-    for age, name in ((3, "a"), (2, "b"), (1, "c")):  # hours since last use
-        cache.write_entry(root / "meshes", f"{name}.bin", blob)
-        os.utime(root / "meshes" / f"{name}.bin", (now - age * 3600,) * 2)
-    assert cache.read_entry(root / "meshes" / "a.bin") == blob  # a is used again: newest
+    # entries are named as make_key names them: eviction deletes nothing else
+    name = {k: cache.make_key({"entry": k}) + ".bin" for k in "abcd"}
+    for age, k in ((3, "a"), (2, "b"), (1, "c")):  # hours since last use
+        cache.write_entry(root / "meshes", name[k], blob)
+        os.utime(root / "meshes" / name[k], (now - age * 3600,) * 2)
+    assert cache.read_entry(root / "meshes" / name["a"]) == blob  # a is used again: newest
     # room for two and a half: writing a fourth deletes down to 90 % of the bound,
     # the least recently used first (b, then c; a was just read)
     monkeypatch.setenv("URDF2MJCF_CACHE_MAX_MB", str(250_000 / 2**20))
-    cache.write_entry(root / "meshes", "d.bin", blob)
+    cache.write_entry(root / "meshes", name["d"], blob)
     left = sorted(p.name for p in (root / "meshes").iterdir())
-    assert left == ["a.bin", "d.bin"]
+    assert left == sorted([name["a"], name["d"]])
     assert cache.info(root).bytes <= 250_000
+    assert cache.is_ours(root), "the first write marked the folder as ours"
 
 
 def test_a_conversion_keeps_the_cache_within_its_bound(robot, tmp_path, monkeypatch):

@@ -43,10 +43,24 @@ from typing import Any
 import yaml
 
 from ..schema import Source, load
+from ..untrusted import excerpt, is_folder_name
 from .fiducials import Fiducial, check_unique, parse_fiducials
 from .noise import parse_noise
 from .root import data_path
 from .scatter import parse_rocks
+from .values import (
+    ANGLE_MAX,
+    FLAG_MAX,
+    FLAG_RANGES,
+    IMPRATIO_MAX,
+    ITERATIONS_MAX,
+    JITTER_POSITION_MAX,
+    JITTER_YAW_MAX,
+    LENGTH_MAX,
+    TIMESTEP_RANGE,
+    number,
+    whole,
+)
 
 COMPONENT_KEYS = (
     "asset", "standalone", "flag", "prefix", "roles", "free", "fiducials", "mechanisms"
@@ -69,6 +83,11 @@ SECTIONS = ("components", "flags", "placements", "jitter", "simulation", "rocks"
 JITTER_KEYS = ("position", "yaw")
 JITTER_DEFAULT = "default"
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
+JITTER_MAX = {"position": JITTER_POSITION_MAX, "yaw": JITTER_YAW_MAX}
+SIMULATION_RANGES = {  # key: (low, high, low_open); iterations is a whole number
+    "timestep": (*TIMESTEP_RANGE, False),
+    "impratio": (0.0, IMPRATIO_MAX, True),
+}
 SIMULATION_CHOICES = {
     "integrator": ("Euler", "RK4", "implicit", "implicitfast"),
     "solver": ("PGS", "CG", "Newton"),
@@ -169,14 +188,23 @@ def _pose(value: Any, src: Source, key: str) -> Pose2D:
     xyz = value["xyz"]
     if not isinstance(xyz, (list, tuple)) or len(xyz) != 3:
         raise src.fail(f"{key}.xyz", "needs three numbers")
-    return Pose2D(
-        tuple(src.number(v, f"{key}.xyz.{i}") for i, v in enumerate(xyz)),  # type: ignore[arg-type]
-        src.number(value.get("yaw", 0.0), f"{key}.yaw"),
+    xyz_m = tuple(
+        number(v, src, f"{key}.xyz.{i}", low=-LENGTH_MAX, high=LENGTH_MAX)
+        for i, v in enumerate(xyz)
     )
+    yaw = number(value.get("yaw", 0.0), src, f"{key}.yaw", low=-ANGLE_MAX, high=ANGLE_MAX)
+    return Pose2D(xyz_m, yaw)  # type: ignore[arg-type]
+
+
+SET_VALUE_MAX = 4096
+"""Characters of one ``--set`` value: a flag, a number, a short list or a path."""
 
 
 def _parse_scalar(text: str) -> Any:
-    """A --set value as YAML would read it (true, 0.5, [1, 2], text)."""
+    """A --set value as YAML would read it (true, 0.5, [1, 2], text); no anchors or
+    aliases (a value on a command line needs none, and an alias bomb would expand)."""
+    if len(text) > SET_VALUE_MAX or "&" in text or "*" in text:
+        return text  # read as text, which every numeric field then refuses
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError:
@@ -228,7 +256,44 @@ def _flags(data: Mapping, src: Source) -> dict:
         if not isinstance(value, (str, bool, int, float)):
             message = "a flag is one value: true, false, a number or a name"
             raise src.fail(f"flags.{name}", message)
+        _check_flag_number(name, value, src)
     return flags
+
+
+def _is_numeric(value: Any) -> bool:
+    """Whether a flag's value is a number to the xacro that reads it (text such as
+    "-5" or "nan" too), not a name, true or false."""
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, (int, float)):
+        return True
+    try:
+        float(value)
+    except (TypeError, ValueError, OverflowError):
+        return False
+    return True
+
+
+def _check_flag_number(name: str, value: Any, src: Source) -> None:
+    """A numeric flag (a xacro argument) is finite, within its own range if it has one
+    (``values.FLAG_RANGES``: strap_stiffness >= 0, ...), else within +-FLAG_MAX."""
+    if _is_numeric(value):
+        low, high, low_open = FLAG_RANGES.get(name, (-FLAG_MAX, FLAG_MAX, False))
+        number(value, src, f"flags.{name}", low=low, high=high, low_open=low_open)
+
+
+def _check_flag_names(flags: Mapping, components: Mapping[str, Component], src: Source) -> None:
+    """A flag is a xacro argument: it must not be one the builder sets from another
+    section (a simulation option, the rocks, a pose), whose checks it would bypass."""
+    poses = {f"{c}_{axis}": c for c in components for axis in ("x", "y", "z", "yaw")}
+    for name in flags:
+        if name in SIMULATION_KEYS:
+            raise src.fail(f"flags.{name}", f"is a simulation option: set simulation.{name}")
+        if name == "rocks":
+            raise src.fail("flags.rocks", "the rocks are a section: set rocks.count, ...")
+        if name in poses:
+            message = f"is a pose argument of '{poses[name]}': set placements.{poses[name]}"
+            raise src.fail(f"flags.{name}", message)
 
 
 def _component(spec: Any, src: Source, where: str) -> Component:
@@ -288,9 +353,9 @@ def _jitter(data: Mapping, src: Source, components: Mapping[str, Component]) -> 
         src.known(ranges, JITTER_KEYS, where)
         out[name] = {}
         for key, v in ranges.items():
-            out[name][key] = src.number(v, f"{where}.{key}")  # type: ignore[index]
-            if out[name][key] < 0:  # type: ignore[index]
-                raise src.fail(f"{where}.{key}", "a jitter range is >= 0")
+            # a +- range: >= 0, and bounded so that a pose stays a pose
+            x = number(v, src, f"{where}.{key}", low=0.0, high=JITTER_MAX[key])
+            out[name][key] = x  # type: ignore[index]
     return out
 
 
@@ -304,8 +369,11 @@ def _simulation(data: Mapping, src: Source) -> dict:
             if str(value) not in SIMULATION_CHOICES[key]:
                 valid = ", ".join(SIMULATION_CHOICES[key])
                 raise src.fail(where, f"'{value}' is not one of {valid}")
-        elif src.number(value, where) <= 0:
-            raise src.fail(where, "must be > 0")
+        elif key == "iterations":
+            whole(value, src, where, low=1, high=ITERATIONS_MAX)
+        else:
+            low, high, low_open = SIMULATION_RANGES[key]
+            number(value, src, where, low=low, high=high, low_open=low_open)
     return simulation
 
 
@@ -320,6 +388,12 @@ def parse_recipe(
         raise src.fail("recipe", "a recipe is a mapping of keys to values")
     src.known({str(k): v for k, v in data.items()}, TOP_KEYS)
     name = src.text(data.get("name"), "name", required=True)
+    if not is_folder_name(name):  # it names the build folder: build/<name>
+        raise src.fail(
+            "name",
+            f"'{excerpt(str(name))}' is not a plain name: letters, digits, '-', '_' and '.' "
+            "(not only dots), at most 255 characters",
+        )
     xacro = src.text(data.get("xacro"), "xacro", required=True)
     description = src.text(data.get("description"), "description") or ""
     actuator_config = src.text(data.get("actuator_config"), "actuator_config")
@@ -336,6 +410,7 @@ def parse_recipe(
         if where not in components:
             valid = _names(components) or "none (the recipe has no components)"
             raise src.fail(f"placements.{where}", f"unknown component; the recipe's: {valid}")
+    _check_flag_names(flags, components, src)
     jitter = _jitter(data, src, components)
     simulation = _simulation(data, src)
     return Recipe(

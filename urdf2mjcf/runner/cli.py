@@ -6,6 +6,7 @@ file, where the report and pictures go)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import time
@@ -17,6 +18,8 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..cli_types import BoundedInt
+from ..facility.values import SEED_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
 from .executors import EXECUTORS, Kind, import_ray
 
@@ -37,6 +40,8 @@ def _table(steps: list[dict]) -> str:
 
 
 GENERATOR = "facility-demo"
+TRIALS_MAX = 100_000
+"""Most trials one run may ask for: days of work, and each one can be stopped."""
 FRAMES_MANIFEST = "frames.json"
 """Written into --frames DIR, listing the pictures: a later run replaces only those."""
 
@@ -82,11 +87,17 @@ def default_waypoints(root: Path, manifest: dict) -> Path:
 )
 @click.option(
     "--trials",
-    type=click.IntRange(min=0),
-    default=0,
-    help="N trials, each on the facility rebuilt with seeded pose jitter (parallel)",
+    type=BoundedInt(1, TRIALS_MAX),
+    default=None,
+    help=f"N trials (1 .. {TRIALS_MAX:,}), each on the facility rebuilt with seeded pose "
+    "jitter (parallel; Ctrl-C or SIGTERM stops them)",
 )
-@click.option("--seed", type=int, default=0, help="first seed of the trials (seeds S..S+N-1)")
+@click.option(
+    "--seed",
+    type=BoundedInt(0, SEED_MAX),
+    default=0,
+    help="first seed of the trials (seeds S..S+N-1, each 0 .. 2**32-1)",
+)
 @click.option(
     "--recipe",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
@@ -114,7 +125,7 @@ def default_waypoints(root: Path, manifest: dict) -> Path:
 )
 @click.option(
     "--workers",
-    type=click.IntRange(min=1),
+    type=BoundedInt(1, 1024),
     default=None,
     help="parallel trials: processes of the local pool, or CPUs of a Ray instance started here",
 )
@@ -139,7 +150,7 @@ def default_waypoints(root: Path, manifest: dict) -> Path:
 def facility_demo_command(
     scene: Path,
     waypoints: Path | None,
-    trials: int,
+    trials: int | None,
     seed: int,
     recipe: Path | None,
     report: Path | None,
@@ -161,10 +172,17 @@ def facility_demo_command(
     from .waypoints import check_names, read_waypoints
 
     # Everything the user gave is checked before anything runs or is written.
+    if trials and seed + trials - 1 > SEED_MAX:
+        raise click.BadParameter(
+            f"the last trial's seed {seed + trials - 1} is over {SEED_MAX}", param_hint="'--seed'"
+        )
+    trials = trials or 0
+    spec = read_waypoints(waypoints) if waypoints else None  # a file given: before the facility
     fac = load(scene)
     root = find_root()  # a checkout here or above, else the installed data
-    waypoints = waypoints or default_waypoints(root, fac.manifest)
-    spec = read_waypoints(waypoints)
+    if spec is None or waypoints is None:
+        waypoints = default_waypoints(root, fac.manifest)
+        spec = read_waypoints(waypoints)
     check_names(spec, waypoints, fac)
     if report:
         out.check_file(report, overwrite, GENERATOR)
@@ -187,22 +205,36 @@ def facility_demo_command(
         from .record import check_recording
 
         check_recording(record, overwrite, GENERATOR)
+        out.check_not_dangling(record, overwrite)
     previous = out.check_folder(frames, overwrite, FRAMES_MANIFEST, GENERATOR) if frames else []
     trial_recipe = None
     if trials:
         trial_recipe = recipe or root / (fac.manifest.get("recipe_file") or "recipes/imetro.yaml")
         load_recipe(trial_recipe)  # here, not in each trial's process
-    with _frames_folder(frames, previous, overwrite) as staged:
-        if trial_recipe is not None:
-            run = TrialRun(trial_recipe, root, waypoints, workers, executor, address, scene)
-            result, success = _trials(run, seed, trials, staged)
-        else:
-            result, success = _once(fac, spec, staged, record)
-    if report:
-        if trials:
-            plot_outcomes(result["aggregate"], plot_path(report))
-            result = {**result, "plot": plot_path(report).name}
-        out.write_json(report, result, GENERATOR)
+    with contextlib.ExitStack() as files:
+        # All or nothing: the report, plot and recording files are made now (a folder we
+        # cannot write in fails before the run), written when it ends, and renamed only
+        # once the pictures are in place.
+        reserve = lambda path: files.enter_context(out.reserved_file(path))  # noqa: E731
+        report_to = reserve(report) if report else None
+        plot_to = reserve(plot_path(report)) if report and trials else None
+        record_to = reserve(record) if record else None
+        with _frames_folder(frames, previous, overwrite) as staged:
+            if trial_recipe is not None:
+                run = TrialRun(trial_recipe, root, waypoints, workers, executor, address, scene)
+                result, success = _trials(run, seed, trials, staged)
+            else:
+                result, success = _once(
+                    fac, spec, staged, record, record_to.tmp if record_to else None
+                )
+            if report and plot_to is not None:
+                plot_outcomes(result["aggregate"], plot_to.tmp)
+                result = {**result, "plot": plot_path(report).name}
+            if report_to is not None:
+                report_to.write(out.json_bytes(result, GENERATOR))
+        for done in (record_to, plot_to, report_to):
+            if done is not None:
+                done.commit()
     sys.exit(0 if success else 1)
 
 
@@ -289,8 +321,14 @@ def _trials(run: TrialRun, seed: int, trials: int, frames: Path | None) -> tuple
 
 
 def _once(
-    fac: Facility, spec: dict, frames: Path | None, record: Path | None = None
+    fac: Facility,
+    spec: dict,
+    frames: Path | None,
+    record: Path | None = None,
+    record_to: Path | None = None,
 ) -> tuple[dict, bool]:
+    """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
+    reserved temporary file) when given."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
@@ -303,7 +341,12 @@ def _once(
         # nothing from the demo's, so a recorded run is the run without --record.
         noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
         recorder = Recorder(
-            fac.model, fac.data, facility_sources(fac), record, generator=GENERATOR, noise=noise
+            fac.model,
+            fac.data,
+            facility_sources(fac),
+            record_to or record,
+            generator=GENERATOR,
+            noise=noise,
         )
         recorder.step()  # the start
         demo.ctl.on_step.append(recorder.step)

@@ -4,6 +4,7 @@ roles resolved to MuJoCo ids (joints, actuators, sensors, cameras, sites)."""
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -12,6 +13,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .. import untrusted
 from ..errors import FacilityError
 from ..facility.manifest import MANIFEST
 
@@ -64,8 +66,9 @@ def facility_files(path: str | Path) -> tuple[Path, Path]:
 
 def read_manifest(path: Path) -> dict:
     """A facility.json as a dict with a ``components`` mapping; LoadError otherwise."""
+    raw = untrusted.read_file(path, "report", error=LoadError, what="manifest")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else "not JSON"
         raise LoadError(f"not a manifest of make-facility: {reason}", file=path) from None
@@ -76,8 +79,49 @@ def read_manifest(path: Path) -> dict:
     return data
 
 
+# MJCF attributes naming a file MuJoCo opens itself (a cube map texture has six)
+_SIDES = ("right", "left", "up", "down", "front", "back")
+_FILE_ATTRS = ("file", *(f"file{side}" for side in _SIDES))
+
+
+def check_scene_files(scene: Path, _depth: int = 0) -> None:
+    """Every file a bundle's MJCF makes MuJoCo open is a regular file within its size
+    limit: a bundle is a stranger's input too, and MuJoCo would block on a FIFO or read
+    ``/dev/zero`` until memory runs out. Includes are followed (to a bounded depth)."""
+    from lxml import etree
+
+    data = untrusted.read_file(scene, "description", error=LoadError, what="scene")
+    try:
+        root = etree.fromstring(data, etree.XMLParser(resolve_entities=False, no_network=True))
+    except etree.XMLSyntaxError:
+        return  # MuJoCo's own error names the line
+    base = scene.parent
+    compiler = root.find(".//compiler")
+    dirs = [""] + [
+        compiler.get(a, "") for a in ("meshdir", "texturedir", "assetdir") if compiler is not None
+    ]
+    for el in root.iter():
+        if not isinstance(el.tag, str):
+            continue
+        for attr in _FILE_ATTRS:
+            value = el.get(attr)
+            if not value:
+                continue
+            kind = "texture" if el.tag in ("texture", "hfield") else "mesh"
+            if el.tag == "include" or el.tag == "model":
+                kind = "description"
+            for folder in dirs:
+                path = Path(value) if Path(value).is_absolute() else base / folder / value
+                if not os.path.lexists(path):
+                    continue  # MuJoCo reports a missing file itself
+                untrusted.check_regular(path, kind, error=LoadError, element=f"<{el.tag}>")
+                if el.tag == "include" and _depth < 16:
+                    check_scene_files(path, _depth + 1)
+
+
 def compile_scene(scene: Path) -> mujoco.MjModel:
     """The compiled scene; a LoadError with MuJoCo's reason when it cannot be loaded."""
+    check_scene_files(scene)
     try:
         return mujoco.MjModel.from_xml_path(str(scene))
     except ValueError as exc:

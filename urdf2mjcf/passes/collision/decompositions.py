@@ -19,13 +19,16 @@ import io
 import json
 import logging
 import math
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ...cache import default_cache_dir, make_key, read_entry, write_entry
+from ...cache import check_environment, default_cache_dir, make_key, read_entry, write_entry
 from ...ir import MeshData
+from ...untrusted import excerpt
 
 __all__ = ["DecompositionCache", "array_digest", "cache_key", "default_cache_dir"]
 
@@ -78,6 +81,7 @@ class DecompositionCache:
     """Convex parts stored under ``root/coacd/<key>.npz``."""
 
     def __init__(self, root: Path):
+        check_environment()  # a bad $URDF2MJCF_CACHE_MAX_MB: an error now, not later
         self.dir = Path(root) / _SUBDIR
 
     def path(self, key: str) -> Path:
@@ -102,7 +106,8 @@ class DecompositionCache:
         try:
             return _decode(data, key)
         except Exception as exc:  # whatever garbage does to np.load: a miss, rebuilt
-            logger.info("ignoring corrupt cache entry %s (%s); computing it again", path, exc)
+            message = excerpt(str(exc), 200)
+            logger.info("ignoring corrupt cache entry %s (%s); computing it again", path, message)
             return None
 
     def store(self, key: str, parts: list[MeshData]) -> None:
@@ -116,10 +121,18 @@ class DecompositionCache:
             return None
         try:
             data = json.loads(raw)
-            gap = float(data["gap"]) if data.get("key") == key else math.nan
-        except Exception:  # absent, truncated or garbage: a miss, rebuilt
+        except Exception:  # truncated or garbage: a miss, rebuilt
             return None
-        return gap if math.isfinite(gap) and gap >= 0.0 else None
+        if not isinstance(data, dict) or data.get("key") != key:
+            return None
+        gap = data.get("gap")
+        if not isinstance(gap, int | float) or isinstance(gap, bool):
+            return None
+        try:
+            value = float(gap)
+        except OverflowError:  # an int of a thousand digits
+            return None
+        return value if math.isfinite(value) and value >= 0.0 else None
 
     def store_gap(self, key: str, gap: float) -> None:
         write_entry(
@@ -143,20 +156,59 @@ def _encode(key: str, parts: list[MeshData]) -> bytes:
     return buf.getvalue()
 
 
+MAX_PARTS = 10_000
+"""More convex parts than any decomposition makes (CoACD's default limit is far lower)."""
+
+
+def _members(data: bytes, count_limit: int) -> set[str]:
+    """The array names of an ``.npz`` entry; ValueError unless it is a zip whose members
+    are all stored uncompressed (as ``np.savez`` writes them), so that what ``np.load``
+    reads is bounded by the entry's own size (a deflated member could expand a
+    thousandfold)."""
+    with zipfile.ZipFile(io.BytesIO(data)) as archive:
+        infos = archive.infolist()
+        if len(infos) > count_limit:
+            raise ValueError(f"{len(infos)} members")
+        names = set()
+        for info in infos:
+            if info.compress_type != zipfile.ZIP_STORED or info.file_size > len(data):
+                raise ValueError(f"member {info.filename!r} is compressed or too large")
+            if not info.filename.endswith(".npy"):
+                raise ValueError(f"member {info.filename!r} is not an array")
+            names.add(info.filename[:-4])
+    return names
+
+
+def _array(npz: Any, name: str, dtype: str, ndim: int) -> np.ndarray:
+    a = npz[name]
+    if a.dtype.str != dtype or a.ndim != ndim:
+        raise ValueError(f"{name} is {a.dtype.str} with {a.ndim} dimensions")
+    return a
+
+
 def _decode(data: bytes, key: str) -> list[MeshData]:
+    """The parts, checked: exactly the arrays we write, each of its dtype and shape,
+    finite vertices, faces in range. ValueError (or whatever garbage makes ``np.load``
+    raise; never a pickle, ``allow_pickle=False``) otherwise."""
+    names = _members(data, 3 + 2 * MAX_PARTS)
     with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-        if int(npz["format"][0]) != CACHE_FORMAT:
+        fmt = _array(npz, "format", "<i8", 1)
+        if fmt.shape != (1,) or int(fmt[0]) != CACHE_FORMAT:
             raise ValueError("other cache format")
-        if npz["key"].tobytes().decode() != key:
+        if _array(npz, "key", "|u1", 1).tobytes() != key.encode():
             raise ValueError("entry stored under another key")
-        count = int(npz["count"][0])
-        if count < 1:
+        count_array = _array(npz, "count", "<i8", 1)
+        count = int(count_array[0]) if count_array.shape == (1,) else 0
+        if not 1 <= count <= MAX_PARTS:
             raise ValueError("no parts")
+        expected = {"format", "key", "count"} | {f"{a}{i}" for i in range(count) for a in "vf"}
+        if names != expected:
+            raise ValueError("arrays other than the parts")
         parts = []
         for i in range(count):
-            v = np.array(npz[f"v{i}"], dtype=np.float64)
-            f = np.array(npz[f"f{i}"], dtype=np.int64)
-            if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+            v = np.array(_array(npz, f"v{i}", "<f8", 2), dtype=np.float64)
+            f = np.array(_array(npz, f"f{i}", "<i8", 2), dtype=np.int64)
+            if v.shape[1] != 3 or f.shape[1] != 3 or len(f) == 0:
                 raise ValueError(f"part {i} has bad shapes {v.shape} {f.shape}")
             if not np.all(np.isfinite(v)) or f.min() < 0 or f.max() >= len(v):
                 raise ValueError(f"part {i} has invalid values")

@@ -33,6 +33,8 @@ import functools
 import hashlib
 import io
 import logging
+import os
+import stat
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from ... import assets
+from ... import assets, untrusted
 from ...cache import default_cache_dir
 from ...errors import MeshError
 from ...geometry import primitive_geom
@@ -129,7 +131,7 @@ def run(model: Model, cfg: MeshConfig) -> Model:
             geometry = visual.geometry
             if isinstance(geometry, MeshRef) and (geometry.path, geometry.scale) not in meshes:
                 continue  # dropped above
-            urdf_mat = _urdf_material(visual.material, notes, link.name)
+            urdf_mat = _urdf_material(visual.material, notes, link.name, robot.source)
             geoms = ours.setdefault(link.name, [])
             if isinstance(geometry, MeshRef):
                 loaded = meshes[(geometry.path, geometry.scale)]  # type: ignore[index]
@@ -169,6 +171,8 @@ class _Assets:
     (left and right links) is encoded once."""
 
     def use(self, material: MaterialAsset, texture: TextureAsset | None) -> str:
+        if texture is not None and not _one_file_name(texture.file):  # it becomes assets/<file>
+            raise MeshError(f"texture file name {texture.file!r} is not a plain file name; refused")
         self.materials.setdefault(material.name, material)
         if texture is not None:
             self.textures.setdefault(texture.name, texture)
@@ -177,6 +181,14 @@ class _Assets:
     def add_mesh(self, asset: MeshAsset) -> str:
         self.pending.setdefault(asset.name, asset)
         return asset.name
+
+
+def _one_file_name(name: str) -> bool:
+    """One path component (no separator, not ``.`` or ``..``, no control character): a
+    name that stays inside the staging folder's ``assets/`` whatever wrote it."""
+    return name not in ("", ".", "..") and "/" not in name and "\\" not in name and (
+        untrusted.printable(name) == name
+    )
 
 
 def _open_cache(cfg: MeshConfig) -> mesh_cache.MeshCache | None:
@@ -223,12 +235,7 @@ def _load(
 ) -> tuple[LoadedMesh, Palette, list[tuple[str, str]]]:
     """One mesh file in metres, split by material, cleaned and within the face limit."""
     ext = path.suffix.lower()
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise _Unusable(f"file not found: {path}") from None
-    except OSError as exc:
-        raise _Unusable(f"cannot read {path}: {exc}") from None
+    data = _read(path, "mesh", "mesh file")
     if data.startswith(LFS_MAGIC):
         raise _Unusable(
             f"{path} is a Git LFS pointer, not a mesh; run 'git lfs pull' in its repository",
@@ -255,11 +262,36 @@ def _load(
     return loaded, dict(entry.palette), list(entry.notes)
 
 
+def _read(path: Path, kind: str, what: str) -> bytes:
+    """The bytes of a regular file within ``kind``'s size limit. A missing or unreadable
+    file is :class:`_Unusable` (a visual is dropped with a warning); a FIFO, device or
+    socket, or a file over the limit, is refused before it is read, and an error even
+    for a visual: no honest description names one."""
+    try:
+        return untrusted.read_file(path, kind, error=MeshError, what=what)
+    except MeshError as exc:
+        raise _Unusable(exc.detail, fatal=_refused(path, kind)) from None
+
+
+def _refused(path: Path, kind: str) -> bool:
+    """Whether ``path`` exists but is not a regular file, or is over ``kind``'s limit."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return False
+    if stat.S_ISDIR(st.st_mode):
+        return False  # a folder named like a mesh: unreadable, as before
+    return not stat.S_ISREG(st.st_mode) or st.st_size > untrusted.limit_bytes(kind)
+
+
 def _side_file(path: Path, name: str) -> bytes | None:
     """A file the decoder of ``path`` reads besides it (a texture, an ``.mtl``), found
-    as trimesh finds it; None where it cannot (missing, unreadable)."""
+    as trimesh finds it; None where it cannot (missing, unreadable). ``name`` comes from
+    a cache entry: it is read exactly as the decoder reads (``Recording._checked_get``),
+    only as a regular file within its kind's size limit (a FIFO would hang us,
+    ``/dev/zero`` fill memory); one refused is None, as the decoder recorded it."""
     try:
-        return _resolver(path).get(name)
+        return _resolver(path)._checked_get(name)
     except Exception:  # as the decoder saw it: no file
         return None
 
@@ -270,9 +302,14 @@ def _resolver(path: Path, log: dict[str, str | None] | None = None) -> Any:
     import trimesh
 
     class Recording(trimesh.resolvers.FilePathResolver):
+        def __init__(self, source: str, allow_anywhere: bool = False):
+            super().__init__(source, allow_anywhere=allow_anywhere)
+            self.refused: list[str] = []
+            """Why each side file that exists but was not read was refused."""
+
         def get(self, name: str) -> bytes:
             try:
-                data = super().get(name)
+                data = self._checked_get(name)
             except Exception:
                 if log is not None:
                     log.setdefault(name, None)
@@ -280,6 +317,24 @@ def _resolver(path: Path, log: dict[str, str | None] | None = None) -> Any:
             if log is not None:
                 log.setdefault(name, hashlib.sha256(data).hexdigest())
             return data
+
+        def _checked_get(self, name: str) -> bytes:
+            # trimesh's get() with its candidates, but reading through read_file: an
+            # OBJ's 'mtllib /dev/zero' or a FIFO texture is refused, not opened
+            stripped = name.strip()
+            for candidate in (stripped, stripped.lstrip("/"), os.path.split(name)[-1]):
+                try:
+                    found = self.absolute(candidate)
+                except ValueError:
+                    continue
+                if found.exists():
+                    kind = "mesh" if found.suffix.lower() == ".mtl" else "texture"
+                    try:
+                        return untrusted.read_file(found, kind, error=MeshError, what="file")
+                    except MeshError as exc:
+                        self.refused.append(exc.detail)
+                        raise
+            raise FileNotFoundError(name)
 
     # ROS meshes often reference '../textures/x.png'; trimesh 5 refuses that by default
     return Recording(str(path), allow_anywhere=True)
@@ -293,16 +348,18 @@ def _decode(
 
     notes: list[tuple[str, str]] = []
     side_files: dict[str, str | None] = {}
+    resolver = _resolver(path, side_files)
     try:
         source = _unbind_broken_materials(data, notes) if ext == ".dae" else data
         scene = trimesh.load_scene(
-            io.BytesIO(source),
-            file_type=ext[1:],
-            resolver=_resolver(path, side_files),
-            process=False,
+            io.BytesIO(source), file_type=ext[1:], resolver=resolver, process=False
         )
     except Exception as exc:  # trimesh and pycollada raise anything on bad input
+        if resolver.refused:  # trimesh may pass our refusal on, or swallow it
+            raise _Unusable(resolver.refused[0], fatal=True) from None
         raise _Unusable(f"cannot read {path}: {type(exc).__name__}: {exc}") from None
+    if resolver.refused:  # a FIFO, device or oversized .mtl or texture: as for the mesh
+        raise _Unusable(resolver.refused[0], fatal=True)
 
     unit = _collada_unit(data) if ext == ".dae" else 1.0
     linear = np.diag(np.asarray(scale, dtype=float) * unit)
@@ -314,8 +371,11 @@ def _decode(
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             continue  # points and lines carry no surface
         m = linear @ matrix[:3, :3]
-        verts = np.asarray(mesh.vertices, dtype=float) @ m.T + linear @ matrix[:3, 3]
-        faces = np.asarray(mesh.faces, dtype=np.int64)
+        with np.errstate(over="ignore", invalid="ignore"):  # a 1e300 vertex: dropped below
+            verts = np.asarray(mesh.vertices, dtype=float) @ m.T + linear @ matrix[:3, 3]
+        verts, faces = _finite_faces(verts, np.asarray(mesh.faces, dtype=np.int64), notes)
+        if not len(faces):
+            continue
         if np.linalg.det(m) < 0:  # a mirror turns triangles inside out; keep normals outward
             faces = faces[:, ::-1]
         mat, uv = _own_material(mesh.visual, stem)
@@ -337,7 +397,8 @@ def _decode(
                 ("warning", f"part {i} has fewer than 4 vertices, which MuJoCo refuses; dropped")
             )
     if not parts:
-        raise _Unusable(f"{path} contains no usable triangles")
+        why = "; ".join(message for kind, message in notes if kind == "warning")
+        raise _Unusable(f"{path} contains no usable triangles" + (f" ({why})" if why else ""))
     merged = _clean(_concat([p.mesh for p in parts], keep_uv=False))
     merged = _decimate(merged, cfg.max_faces, "all parts together", notes)
     used = {p.material for p in parts}
@@ -348,6 +409,37 @@ def _decode(
         notes=tuple(notes),
         deps=tuple(side_files.items()),
     )
+
+
+MAX_COORDINATE = 1e6
+"""Largest vertex coordinate (metres, after scale and unit) a mesh may use: a face
+with a vertex beyond it, or with a NaN or infinite one, is dropped with a warning
+(the rest of the mesh is kept; a mesh left with no face is unusable)."""
+
+
+def _finite_faces(
+    verts: np.ndarray, faces: np.ndarray, notes: list[tuple[str, str]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) without the faces that use a non-finite or far-out vertex (see
+    :data:`MAX_COORDINATE`), those vertices zeroed (unused now; a NaN left in would
+    spoil the mesh's size that cleaning measures); one warning saying how many."""
+    with np.errstate(invalid="ignore"):
+        good = np.isfinite(verts).all(axis=1) & (np.abs(verts) <= MAX_COORDINATE).all(axis=1)
+    if good.all():
+        return verts, faces
+    verts = np.where(good[:, None], verts, 0.0)
+    keep = np.asarray(((faces >= 0) & (faces < len(verts))).all(axis=1))
+    keep[keep] = good[faces[keep]].all(axis=1)
+    dropped = int(len(faces) - keep.sum())
+    if dropped:
+        notes.append(
+            (
+                "warning",
+                f"{dropped} face(s) with a NaN, infinite or out-of-range vertex coordinate "
+                f"(beyond {MAX_COORDINATE:g} m) dropped",
+            )
+        )
+    return verts, faces[keep]
 
 
 def _unbind_broken_materials(data: bytes, notes: list[tuple[str, str]]) -> bytes:
@@ -462,7 +554,7 @@ def _png(mode: str, size: tuple[int, int], pixels: bytes) -> bytes:
 
 
 def _urdf_material(
-    material: Material | None, notes: list[Note], link: str
+    material: Material | None, notes: list[Note], link: str, source: Path | None = None
 ) -> tuple[tuple[MaterialAsset, TextureAsset | None], tuple[MaterialAsset, None]] | None:
     """The URDF colour as ((textured material, texture), (plain material, None)), or None.
 
@@ -476,13 +568,21 @@ def _urdf_material(
     plain = (_material(stem, rgba, None), None)
     if material.texture is None:
         return plain, plain
-    try:
-        from PIL import Image
+    from PIL import Image
 
-        with Image.open(material.texture) as img:
+    where = f"link '{link}' material '{material.name}'"
+    try:
+        data = _read(material.texture, "texture", "texture")
+        # PIL opens bytes we read (regular file, size-limited), never the path itself;
+        # a decompression bomb (huge pixel count in a small file) is refused by PIL
+        with Image.open(io.BytesIO(data)) as img:
             texture = _texture(material.texture.stem, img)
-    except OSError as exc:
-        where = f"link '{link}' material '{material.name}'"
+    except _Unusable as exc:
+        if exc.fatal:  # a FIFO, device or oversized file: refused, as a mesh would be
+            raise MeshError(str(exc), file=source, element=where) from None
+        notes.append(Note("warning", where, f"{exc}; colour only"))
+        return plain, plain
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
         notes.append(
             Note("warning", where, f"texture {material.texture} unreadable ({exc}); colour only")
         )

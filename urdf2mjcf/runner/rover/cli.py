@@ -2,16 +2,29 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import click
 
+from ...cli_types import FiniteFloat
 from .roles import RoverError
-from .sim import RoverSim
+from .sim import SETTLE_MAX, RoverSim
 from .tasks import ArmWave, Straight, Task, Turn
+
+DISTANCE_MAX = 1_000.0
+"""m: the longest drive (it must also end within ``sim.TASK_TIMEOUT``
+simulated seconds, 120 s: at 0.5 m/s, about 55 m)."""
+SPEED_MAX = 10.0
+"""m/s: the fastest drive asked for (the wheel servos' limits cap the real speed)."""
+TURN_MAX = 3_600.0
+"""deg: the largest turn in place (ten turns)."""
+RATE_MAX = 360.0
+"""deg/s: the fastest turn asked for."""
 
 
 @click.command("rover-drive", context_settings={"help_option_names": ["-h", "--help"]})
@@ -24,20 +37,34 @@ from .tasks import ArmWave, Straight, Task, Turn
 )
 @click.option(
     "--distance",
-    type=float,
+    type=FiniteFloat(-DISTANCE_MAX, DISTANCE_MAX),
     default=10.0,
     show_default=True,
-    help="m to drive straight (wheel odometry; negative: backwards; 0: none)",
+    help=f"m to drive straight, -{DISTANCE_MAX:g} .. {DISTANCE_MAX:g} (wheel odometry; "
+    "negative: backwards; 0: none)",
 )
-@click.option("--speed", type=float, default=0.5, show_default=True, help="m/s")
+@click.option(
+    "--speed",
+    type=FiniteFloat(0.0, SPEED_MAX, low_open=True),
+    default=0.5,
+    show_default=True,
+    help=f"m/s, above 0 and at most {SPEED_MAX:g}",
+)
 @click.option(
     "--turn",
-    type=float,
+    type=FiniteFloat(-TURN_MAX, TURN_MAX),
     default=0.0,
     show_default=True,
-    help="deg to turn in place after the drive (positive: left; 0: none)",
+    help=f"deg to turn in place after the drive, -{TURN_MAX:g} .. {TURN_MAX:g} "
+    "(positive: left; 0: none)",
 )
-@click.option("--rate", type=float, default=30.0, show_default=True, help="deg/s while turning")
+@click.option(
+    "--rate",
+    type=FiniteFloat(0.0, RATE_MAX, low_open=True),
+    default=30.0,
+    show_default=True,
+    help=f"deg/s while turning, above 0 and at most {RATE_MAX:g}",
+)
 @click.option(
     "--arm/--no-arm",
     default=False,
@@ -46,10 +73,10 @@ from .tasks import ArmWave, Straight, Task, Turn
 )
 @click.option(
     "--settle",
-    type=float,
+    type=FiniteFloat(0.0, SETTLE_MAX),
     default=1.0,
     show_default=True,
-    help="s standing still before the first command",
+    help=f"s standing still before the first command, 0 .. {SETTLE_MAX:g}",
 )
 @click.option(
     "--report",
@@ -90,6 +117,39 @@ def rover_drive_command(
         from ..record import check_recording
 
         check_recording(record, overwrite, "rover-drive")
+        out.check_not_dangling(record, overwrite)
+    with contextlib.ExitStack() as files:
+        # All or nothing: both files are made before driving (a folder we cannot write in
+        # fails first), and renamed into place together at the end.
+        report_to = files.enter_context(out.reserved_file(report)) if report else None
+        record_to = files.enter_context(out.reserved_file(record)) if record else None
+        results, warnings = _drive(
+            scene, names, distance, speed, turn, rate, arm, settle, record, record_to
+        )
+        if report_to is not None:
+            data = {"scene": str(scene), "tasks": results, "warnings": warnings}
+            report_to.write(out.json_bytes(data, "rover-drive"))
+        for done in (record_to, report_to):
+            if done is not None:
+                done.commit()
+    if warnings:
+        raise click.ClickException(f"MuJoCo warned while driving: {warnings}")
+
+
+def _drive(
+    scene: Path,
+    names: tuple[str, ...],
+    distance: float,
+    speed: float,
+    turn: float,
+    rate: float,
+    arm: bool,
+    settle: float,
+    record: Path | None,
+    record_to: Any,
+) -> tuple[list[dict], dict[str, int]]:
+    """Drive, print each task's summary; the results and MuJoCo's warnings. The
+    recording of ``record`` goes to ``record_to`` (its reserved file)."""
     recorder = None
     try:
         sim = RoverSim(scene)
@@ -100,7 +160,8 @@ def rover_drive_command(
             from ..record import Recorder, rover_sources
 
             sources = rover_sources(sim.m, sim.manifest, sim.rovers)
-            recorder = Recorder(sim.m, sim.d, sources, record, generator="rover-drive")
+            to = record_to.tmp
+            recorder = Recorder(sim.m, sim.d, sources, to, generator="rover-drive")
             recorder.step()  # the start
             sim.on_step.append(recorder.step)
         sim.settle(settle)
@@ -124,8 +185,4 @@ def rover_drive_command(
     finally:
         if recorder is not None:
             recorder.abort()  # after close(): nothing to do; else nothing is left behind
-    if report is not None:
-        data = {"scene": str(scene), "tasks": results, "warnings": warnings}
-        out.write_json(report, data, "rover-drive")
-    if warnings:
-        raise click.ClickException(f"MuJoCo warned while driving: {warnings}")
+    return results, warnings
