@@ -1,0 +1,73 @@
+"""docs/security.md states facts the code holds: the size limits (each kind, its
+default, its variable), the YAML expansion bound, the xacro expansion bounds and the
+trust switch are read from the code here, so the page cannot drift."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from urdf2mjcf import untrusted
+from urdf2mjcf.passes import xacro_guard
+from urdf2mjcf.passes.validate import ValidateConfig
+
+DOC = (Path(__file__).resolve().parents[2] / "docs" / "security.md").read_text()
+
+
+def limits_table() -> str:
+    rows = ["| kind | default | variable | covers |", "|---|---|---|---|"]
+    for kind, (mb, what) in untrusted.LIMITS_MB.items():
+        rows.append(f"| {kind} | {mb:g} MB | `{untrusted.limit_env(kind)}` | {what} |")
+    return "\n".join(rows)
+
+
+def test_the_limits_table_is_the_code_s():
+    start = DOC.index("<!-- limits table")
+    end = DOC.index("<!-- end limits table -->")
+    table = DOC[start:end].split("-->", 1)[1].strip()
+    assert table == limits_table(), "regenerate the table from untrusted.LIMITS_MB:\n" + (
+        limits_table()
+    )
+
+
+def _bounds() -> dict[str, str]:
+    from urdf2mjcf.facility import scatter
+    from urdf2mjcf.runner import cli as runner_cli
+    from urdf2mjcf.runner import waypoints
+    from urdf2mjcf.runner.rover import sim
+
+    return {
+        "ValidateConfig.max_steps": f"{ValidateConfig.max_steps:,} steps",
+        "xacro_guard.MAX_TEXT": f"{xacro_guard.MAX_TEXT:,} characters",
+        "xacro_guard.MAX_ITEMS": f"{xacro_guard.MAX_ITEMS:,} items",
+        "xacro_guard.MAX_ITERATIONS": f"{xacro_guard.MAX_ITERATIONS:,} iterations",
+        "xacro_guard.MAX_INT_BITS": f"{xacro_guard.MAX_INT_BITS:,} bits",
+        "xacro_guard.MAX_MACRO_CALLS": f"{xacro_guard.MAX_MACRO_CALLS:,} macro calls",
+        "xacro_guard.MAX_INCLUDES": f"{xacro_guard.MAX_INCLUDES:,} includes",
+        "scatter.COUNT_MAX": f"{scatter.COUNT_MAX:,} rocks",
+        "scatter.TRY_MAX": f"{scatter.TRY_MAX:,} draws",
+        "runner.cli.TRIALS_MAX": f"{runner_cli.TRIALS_MAX:,} trials",
+        "waypoints.DURATION_MAX": f"{waypoints.DURATION_MAX:g} s",
+        "waypoints.STEPS_MAX": f"{waypoints.STEPS_MAX:,} steps",
+        "rover.sim.SETTLE_MAX": f"{sim.SETTLE_MAX:g} s",
+        "rover.sim.TASK_TIMEOUT": f"{sim.TASK_TIMEOUT:g} s",
+    }
+
+
+def test_the_bounds_table_is_the_code_s():
+    start = DOC.index("<!-- bounds table")
+    end = DOC.index("<!-- end bounds table -->")
+    rows = [r for r in DOC[start:end].splitlines() if r.startswith("| ") and "`" in r]
+    found = {}
+    for row in rows:
+        _, _, bound, where, _ = (c.strip() for c in row.split("|"))
+        found[where.strip("`")] = bound
+    assert found == _bounds()
+
+
+def test_the_figures_the_page_repeats_are_the_code_s():
+    for figure in (
+        f"{untrusted.YAML_MAX_NODES:,} nodes",
+        f"`{xacro_guard.TRUST_ENV}=1`",
+        f"`{untrusted.limit_env('mesh')}`",
+    ):
+        assert figure in DOC, figure
