@@ -174,7 +174,11 @@ def _recipe_text(tmp_path: Path, table: str) -> Path:
             "box.fiducials[0].xyz",
             "is not three numbers",
         ),
-        ("[{id: 1, link: base, xyz: [0, 0, 0], size: 0}]", "box.fiducials[0].size", "> 0"),
+        (
+            "[{id: 1, link: base, xyz: [0, 0, 0], size: 0}]",
+            "box.fiducials[0].size",
+            "out of range (above 0 to 10)",
+        ),
         (
             "[{id: 1, link: base, xyz: [0, 0, 0], size: 0.1, colour: red}]",
             "box.fiducials[0].colour",

@@ -50,14 +50,13 @@ from .root import data_path
 from .scatter import parse_rocks
 from .values import (
     ANGLE_MAX,
-    FLAG_MAX,
-    FLAG_RANGES,
     IMPRATIO_MAX,
     ITERATIONS_MAX,
     JITTER_POSITION_MAX,
     JITTER_YAW_MAX,
     LENGTH_MAX,
     TIMESTEP_RANGE,
+    flag_range,
     number,
     whole,
 )
@@ -276,9 +275,9 @@ def _is_numeric(value: Any) -> bool:
 
 def _check_flag_number(name: str, value: Any, src: Source) -> None:
     """A numeric flag (a xacro argument) is finite, within its own range if it has one
-    (``values.FLAG_RANGES``: strap_stiffness >= 0, ...), else within +-FLAG_MAX."""
+    (``values.FLAG_RANGES``: a stiffness >= 0, ...), else within +-FLAG_MAX."""
     if _is_numeric(value):
-        low, high, low_open = FLAG_RANGES.get(name, (-FLAG_MAX, FLAG_MAX, False))
+        low, high, low_open = flag_range(name)
         number(value, src, f"flags.{name}", low=low, high=high, low_open=low_open)
 
 

@@ -39,19 +39,27 @@ IMPRATIO_MAX = 1_000.0
 """``simulation.impratio`` (> 0; our recipes use 10)."""
 FLAG_MAX = 1e9
 """Magnitude of any numeric flag (a xacro argument) without its own range."""
-FLAG_RANGES: dict[str, tuple[float, float, bool]] = {
-    # name: (low, high, low_open): the numeric flags of our worlds with a physical range
-    "strap_stiffness": (0.0, 1e6, False),  # N/m of the CTB's handle strap; 0: rigid
-    "terrain_size_x": (0.0, 100_000.0, True),  # m, the heightmap's extent
-    "terrain_size_y": (0.0, 100_000.0, True),
-    "terrain_z_min": (-10_000.0, 10_000.0, False),  # m, darkest pixel's elevation
-    "terrain_z_max": (-10_000.0, 10_000.0, False),  # m, brightest pixel's elevation
-    "terrain_x": (-LENGTH_MAX, LENGTH_MAX, False),
-    "terrain_y": (-LENGTH_MAX, LENGTH_MAX, False),
-    "terrain_base": (0.0, 10_000.0, True),  # m, the heightfield's base thickness
-    "gravity": (0.0, 1_000.0, False),  # m/s^2 (or auto: the terrain's own)
-}
-"""Numeric flags with a range of their own (any other numeric flag: |x| <= FLAG_MAX)."""
+FLAG_RANGES: tuple[tuple[str, tuple[float, float, bool]], ...] = (
+    # (name pattern, (low, high, low_open)): a flag's range follows from what its name says
+    # it is, whatever the component (the builder knows none by name); first match wins
+    (r"gravity", (0.0, 1_000.0, False)),  # m/s^2 (or auto: the world's own)
+    (r".*_(stiffness|damping|friction|mass)", (0.0, 1e6, False)),  # physical, >= 0; 0: rigid
+    (r".*_size(_[xyz])?", (0.0, 100_000.0, True)),  # m, an extent
+    (r".*_base", (0.0, 10_000.0, True)),  # m, a heightfield's base thickness
+    (r".*_z_(min|max)", (-10_000.0, 10_000.0, False)),  # m, an elevation
+    (r".*_[xyz]", (-LENGTH_MAX, LENGTH_MAX, False)),  # m, a position
+)
+"""Numeric flags whose name gives them a range (any other numeric flag: |x| <= FLAG_MAX)."""
+
+
+def flag_range(name: str) -> tuple[float, float, bool]:
+    """The range of the numeric flag ``name``: (low, high, low_open)."""
+    import re
+
+    for pattern, bounds in FLAG_RANGES:
+        if re.fullmatch(pattern, name):
+            return bounds
+    return (-FLAG_MAX, FLAG_MAX, False)
 
 
 def fail(path: Path | Source | None, key: str, message: str) -> InputError:
