@@ -23,6 +23,7 @@ import secrets
 import shutil
 import socket
 import sys
+import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -125,9 +126,15 @@ def clean_stale(parent: Path, name: str) -> None:
             entry.unlink(missing_ok=True)
 
 
+_EMPTY_GRACE_S = 60.0
+"""An empty staging folder younger than this may be a concurrent run's, not yet marked."""
+
+
 def _clean_folder(folder: Path, output: Path) -> None:
     if not any(folder.iterdir()):  # made, killed before its marker: empty, nothing to lose
-        folder.rmdir()
+        # but not one a concurrent run made an instant ago and is about to mark
+        if time.time() - folder.stat().st_mtime > _EMPTY_GRACE_S:
+            folder.rmdir()
         return
     data = _stale_mark(folder)
     if data is None:
