@@ -113,6 +113,11 @@ CASES = {
 }
 
 
+STRICT = {"missing_mesh", "unknown_package"}
+"""Errors only with --strict: without it the mesh is dropped with a warning
+(tests/test_convert_what_others_convert.py)."""
+
+
 def _write_case(tmp_path: Path, name: str) -> tuple[Path, str, type]:
     filename, text, needle, exc = CASES[name]
     src = tmp_path / "in" / filename
@@ -130,7 +135,8 @@ def test_bad_input_gives_one_error_line_exit_2_and_no_output(case, tmp_path):
     before = sorted(p.read_bytes() for p in src.parent.iterdir())
     out = tmp_path / "out" / "robot.xml"
     proc = subprocess.run(
-        [sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out), "--no-ros-env"],
+        [sys.executable, "-m", "urdf2mjcf", str(src), "-o", str(out), "--no-ros-env"]
+        + (["--strict"] if case in STRICT else []),
         capture_output=True,
         text=True,
         timeout=300,
@@ -150,7 +156,9 @@ def test_bad_input_gives_one_error_line_exit_2_and_no_output(case, tmp_path):
 def test_bad_input_raises_specific_error_from_api(case, tmp_path):
     src, needle, exc = _write_case(tmp_path, case)
     with pytest.raises(exc) as info:
-        urdf2mjcf.convert(src, tmp_path / "out" / "robot.xml", use_environment=False)
+        urdf2mjcf.convert(
+            src, tmp_path / "out" / "robot.xml", use_environment=False, strict=case in STRICT
+        )
     assert needle in str(info.value)
     assert isinstance(info.value, errors.ConversionError)
 

@@ -192,7 +192,8 @@ def test_mesh_that_exists_nowhere_is_one_error_line(tmp_path):
     uri = "package://robot_support/meshes/gone.stl"
     src = _urdf(pkg / "urdf" / "robot.urdf", uri)
     out = tmp_path / "out" / "robot.xml"
-    proc = _convert(src, out)
+    # without --strict: a warning, the mesh dropped (test_convert_what_others_convert.py)
+    proc = _convert(src, out, "--strict")
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
@@ -331,7 +332,8 @@ def test_two_files_of_that_name_are_an_error_naming_both(tmp_path):
     b = _mesh(robot / "meshes" / "collision" / "link.stl")
     src = _collision_urdf(robot / "robot.urdf", "meshes/coarse/link.stl")
     out = tmp_path / "out" / "robot.xml"
-    proc = _convert(src, out)
+    # without --strict: a warning, the mesh dropped (test_convert_what_others_convert.py)
+    proc = _convert(src, out, "--strict")
     assert proc.returncode == 2, proc.stderr
     errors = _errors(proc)
     assert len(errors) == 1 and errors[0].startswith("error:"), proc.stderr
@@ -345,7 +347,8 @@ def test_no_file_of_that_name_keeps_the_missing_mesh_error(tmp_path):
     _mesh(robot / "meshes" / "link.obj")  # and so is the extension
     src = _collision_urdf(robot / "robot.urdf", "meshes/coarse/link.stl")
     out = tmp_path / "out" / "robot.xml"
-    proc = _convert(src, out)
+    # without --strict: a warning, the mesh dropped (test_convert_what_others_convert.py)
+    proc = _convert(src, out, "--strict")
     assert proc.returncode == 2, proc.stderr
     errors = _errors(proc)
     assert len(errors) == 1 and "not found" in errors[0], proc.stderr

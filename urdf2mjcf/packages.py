@@ -34,9 +34,16 @@ a path that does not exist gets one more guess, a note like the others:
    ``package.xml``); for a ``package://`` URI that package's folder
    (``meshes/coarse/link_0.stl`` shipped as ``meshes/link_0.stl``). Exactly
    one such file is used; several are an error naming them; none leaves the
-   path as written, for the mesh pass to report.
+   path as written, for the mesh pass to report. Of several, the one whose
+   folders end like the reference's (``.../iiwa14/visual/link_0.obj``) is used
+   when it is the only one sharing that many.
 
-A file found by none of these is an error naming the URI.
+``package://NAME`` with nothing after NAME, where NAME looks like a file
+(``package://wheel.obj``), is the file NAME inside the folder given for that
+package, else (a guess) a file NAME beside the source or an ancestor.
+
+A file found by none of these is an error naming the URI (the parse pass drops
+such a mesh with a warning unless ``strict``).
 """
 
 from __future__ import annotations
@@ -152,6 +159,25 @@ def _index_tree(root: Path) -> dict[str, list[Path]]:
                     return index
         level = next_level
     return index
+
+
+def _closest(found: list[Path], path: Path) -> list[Path]:
+    """Of several files named like ``path``, the one whose folders end like ``path``'s
+    (``.../iiwa_description/meshes/iiwa14/visual/link_0.obj`` for
+    ``package://drake/manipulation/models/iiwa_description/meshes/iiwa14/visual/link_0.obj``)
+    when exactly one shares more of them than any other and at least one; else all."""
+
+    def shared(candidate: Path) -> int:
+        n = 0
+        for a, b in zip(reversed(candidate.parts[:-1]), reversed(path.parts[:-1]), strict=False):
+            if a != b:
+                break
+            n += 1
+        return n
+
+    scores = [shared(f) for f in found]
+    best = max(scores)
+    return [found[scores.index(best)]] if best > 0 and scores.count(best) == 1 else found
 
 
 @dataclass(frozen=True)
@@ -304,6 +330,31 @@ class PackageResolver:
                     return folder / relative
         raise self._not_found(name, element, f" and no folder near the source holds '{relative}'")
 
+    def _bare(self, name: str, element: str | None) -> Path:
+        """``package://NAME`` with nothing after the name. Where NAME looks like a file
+        (``package://wheel.obj``, seen in exports): the file NAME inside the folder given
+        as that package, else a file NAME beside the source or an ancestor (a guess)."""
+        if not Path(name).suffix:
+            return self.find(name, element=element)
+        found = self._exact(name)
+        if found is not None:
+            return found / name if (found / name).is_file() else found
+        for folder in self._ancestors:
+            if (folder / name).is_file():
+                self._guess(
+                    ("bare", name, folder),
+                    element,
+                    f"'package://{name}' names a file, not a package; using {folder / name}",
+                    fix=f"write '{name}' as a path relative to the source",
+                )
+                return folder / name
+        raise PackageNotFoundError(
+            f"'package://{name}' names a file, not a package, and no file '{name}' is beside "
+            f"the source; pass --package {name}=DIR with DIR the folder holding {name}",
+            file=self.source,
+            element=element,
+        )
+
     def resolve(self, uri: str, *, element: str | None = None, base: Path | None = None) -> Path:
         """Resolve ``package://``, ``model://``, ``file://``, absolute and relative references.
 
@@ -354,6 +405,9 @@ class PackageResolver:
         """Step 9: the one file called ``path.name`` below where ``uri`` points, else ``path``."""
         for root in self._search_roots(uri, path, base):
             found = self._files(root).get(path.name, [])
+            several = len(found) > 1
+            if several:
+                found = _closest(found, path)
             if len(found) > 1:
                 shown = ", ".join(str(f) for f in found)
                 raise PackageNotFoundError(
@@ -366,8 +420,13 @@ class PackageResolver:
                 self._guess(
                     ("same name", uri, base),
                     element,
-                    f"'{uri}' does not exist ({path}); using {found[0]}, the only file of that "
-                    f"name below {root}",
+                    f"'{uri}' does not exist ({path}); using {found[0]}, "
+                    + (
+                        "of the files of that name the one whose folders end like the URI's"
+                        if several
+                        else "the only file of that name"
+                    )
+                    + f" below {root}",
                     fix="write the path where the file is",
                 )
                 return found[0]
@@ -387,7 +446,7 @@ class PackageResolver:
                 if name in (".", ".."):
                     return base / name / relative
                 if not relative:
-                    return self.find(name, element=element)
+                    return self._bare(name, element)
                 return self._package_file(name, relative, element)
         if uri.startswith("file:"):
             rest = unquote(uri[len("file:") :])

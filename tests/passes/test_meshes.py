@@ -464,9 +464,16 @@ def test_git_lfs_pointer_is_an_error_even_for_a_visual(tmp_path):
 
 
 @pytest.mark.parametrize("path", [None, Path("/nonexistent/meshes/arm.stl")])
-def test_missing_collision_mesh_is_an_error_naming_the_link(path):
+def test_missing_collision_mesh_is_dropped_with_a_warning_an_error_when_strict(path):
+    ref = mesh_ref(path, filename="package://pkg/meshes/arm.stl")
+    model = run(collision_link("arm", ref))
+    dropped, left = model.notes
+    assert dropped.kind == "warning" and "collision dropped" in dropped.message
+    assert dropped.element == "link 'arm' collision mesh 'package://pkg/meshes/arm.stl'"
+    assert left.element == "link 'arm'" and "no collision geometry left" in left.message
+    assert model.robot.link_map["arm"].collisions == ()
     with pytest.raises(MeshError) as err:
-        run(collision_link("arm", mesh_ref(path, filename="package://pkg/meshes/arm.stl")))
+        run(collision_link("arm", ref), strict_visual=True)
     assert "link 'arm' collision mesh 'package://pkg/meshes/arm.stl'" in str(err.value)
     assert err.value.file == "/robots/r.urdf"
 
@@ -496,7 +503,7 @@ def test_unsupported_format_names_the_supported_ones(tmp_path):
     ogre = tmp_path / "arm.mesh"
     ogre.write_bytes(b"\x00\x10[MeshSerializer_v1.100]")
     with pytest.raises(MeshError, match=r"unsupported mesh format '\.mesh'; supported: \.stl"):
-        run(collision_link("arm", mesh_ref(ogre)))
+        run(collision_link("arm", mesh_ref(ogre)), strict_visual=True)
     model = run(visual_link("arm", mesh_ref(ogre)))
     assert model.notes[0].kind == "warning" and "arm" not in model.visual_geoms
 
@@ -509,10 +516,15 @@ def test_unsupported_format_names_the_supported_ones(tmp_path):
         ("points.obj", b"v 0 0 0\nv 1 0 0\n"),
     ],
 )
-def test_unreadable_or_empty_collision_mesh_is_an_error(tmp_path, name, content):
+def test_unreadable_or_empty_collision_mesh_is_dropped_an_error_when_strict(
+    tmp_path, name, content
+):
     (tmp_path / name).write_bytes(content)
+    model = run(collision_link("arm", mesh_ref(tmp_path / name)))
+    assert "collision dropped" in model.notes[0].message
+    assert model.robot.link_map["arm"].collisions == ()
     with pytest.raises(MeshError, match="link 'arm' collision mesh"):
-        run(collision_link("arm", mesh_ref(tmp_path / name)))
+        run(collision_link("arm", mesh_ref(tmp_path / name)), strict_visual=True)
 
 
 # ---------------------------------------------------------------------------

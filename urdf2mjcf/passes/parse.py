@@ -20,7 +20,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from ..errors import InputError, URDFError
+from ..errors import InputError, PackageNotFoundError, URDFError
 from ..ir import (
     JOINT_TYPES,
     Box,
@@ -58,6 +58,8 @@ far beyond any robot, far below what overflows the arithmetic of later passes
 LIMIT_MAGNITUDE = 1e30
 """Joint ``<limit>`` values may be larger: ``upper="1e+16"`` is a common way to say
 'unlimited' (example-robot-data's iris)."""
+WORLD = "world"
+"""The parent link name Drake and Gazebo use for the world frame."""
 JOINT_ALIASES = {"ball": "spherical"}
 """Joint type spellings other tools accept, read as ours (with a warning)."""
 
@@ -79,6 +81,8 @@ class _Reader:
         self.resolver = resolver
         self.cfg = cfg
         self.notes: list[Note] = []
+        self.dropped_meshes = 0
+        """Meshes dropped because their file could not be found (not with ``strict``)."""
 
     def fail(self, element: str, message: str) -> URDFError:
         return URDFError(message, file=self.source, element=element)
@@ -213,7 +217,17 @@ class _Reader:
                 scale = self.floats(shape, "scale", 3, where, (1.0, 1.0, 1.0))  # type: ignore[assignment]
             if 0.0 in scale:
                 return MeshRef(filename=filename, path=None, scale=scale)  # dropped by the caller
-            path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
+            try:
+                path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
+            except PackageNotFoundError as exc:
+                if self.cfg.strict:
+                    raise
+                # as urdfdom and RViz do: the robot without this mesh (the mesh pass does
+                # the same for a file that is missing or unreadable)
+                element = f"{where} mesh '{excerpt(filename, 120)}'"
+                self.notes.append(Note("warning", element, f"{exc.detail}; dropped"))
+                self.dropped_meshes += 1
+                return None
             return MeshRef(filename=filename, path=path, scale=tuple(v + 0.0 for v in scale))  # type: ignore[arg-type]
         raise AssertionError(kind)
 
@@ -240,7 +254,7 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material], moves: boo
     if iel is not None:
         mel = iel.find("mass")
         if mel is None:
-            raise r.fail(where, "<inertial> has no <mass>")
+            r.liberty(f"{where} <inertial>", "has no <mass>; read as mass 0, as urdfdom reads it")
         tel = iel.find("inertia")
         if tel is None:
             inertia = (0.0,) * 6
@@ -250,7 +264,7 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material], moves: boo
             )
         inertial = Inertial(
             origin=r.pose(iel.find("origin"), where),
-            mass=r.scalar(mel, "value", where),
+            mass=r.scalar(mel, "value", where) if mel is not None else 0.0,
             inertia=inertia,
         )  # type: ignore[arg-type]
     visuals = []
@@ -265,6 +279,7 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material], moves: boo
         if geometry is not None:
             visuals.append(Visual(origin, geometry, material=material, name=vel.get("name")))
     collisions = []
+    dropped_before = r.dropped_meshes
     for i, cel in enumerate(el.findall("collision")):
         cwhere = f"{where} collision {i}"
         origin = r.pose(cel.find("origin"), cwhere)
@@ -273,6 +288,9 @@ def _link(el: etree._Element, r: _Reader, named: dict[str, Material], moves: boo
             continue
         if geometry is not None:
             collisions.append(Collision(origin, geometry, name=cel.get("name")))
+    if not collisions and r.dropped_meshes > dropped_before:
+        message = "has no collision geometry left: its collision meshes were dropped"
+        r.notes.append(Note("warning", where, message))
     return Link(name=name, inertial=inertial, visuals=tuple(visuals), collisions=tuple(collisions))  # type: ignore[arg-type]
 
 
@@ -395,6 +413,29 @@ def _plane_allowed(r: _Reader, where: str, moves: bool) -> bool:
     return True
 
 
+def _world_link(links: list[Link], joints: list[Joint], r: _Reader) -> list[Link]:
+    """A parent link ``world`` that no ``<link>`` defines is the world frame (Drake's and
+    Gazebo's convention): an empty root link of that name, which emit writes as the
+    world body. Any other undefined parent stays an error (:func:`_check_tree`)."""
+    if any(link.name == WORLD for link in links):
+        return links
+    to_world = [j for j in joints if j.parent == WORLD]
+    if not to_world:
+        return links
+    for j in to_world:
+        how = (
+            "is welded to the world at the joint's origin"
+            if j.type == "fixed"
+            else f"is attached to the world by this {j.type} joint at its origin"
+        )
+        r.liberty(
+            f"joint '{j.name}'",
+            f"parent link 'world' is not defined; read as the world frame (Drake's and "
+            f"Gazebo's convention): link '{j.child}' {how}",
+        )
+    return [Link(name=WORLD), *links]
+
+
 def _check_tree(robot_links: list[Link], joints: list[Joint], r: _Reader) -> None:
     names = set()
     for link in robot_links:
@@ -495,6 +536,7 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
     moving = _moving_links(root, cfg)
     links = [_link(el, r, named, el.get("name") in moving) for el in root.findall("link")]
     joints = [_joint(el, r) for el in root.findall("joint")]
+    links = _world_link(links, joints, r)
     _check_tree(links, joints, r)
     joints, notes = _drop_dangling_mimics(joints)
     notes = [Note("warning", "xacro", w) for w in doc.warnings] + list(doc.notes) + r.notes + notes

@@ -205,7 +205,18 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
     notes = [_liberty(cfg, source, element, message, InputError) for element, message in fixes]
     if _needs_xacro(source, data, cfg.args):
         log.debug("expanding %s with xacro (args %s)", source, dict(cfg.args))
-        xml, warnings = _expand(source, cfg, resolver, data if fixes else None)
+        repaired = data if fixes else None
+        for _ in range(MAX_IGNORED_MACROS + 1):
+            try:
+                xml, warnings = _expand(source, cfg, resolver, repaired)
+                break
+            except XacroError as exc:
+                stripped = _without_unknown_macro(exc, source, cfg, data, notes)
+                if stripped is None:
+                    raise
+                data = repaired = stripped
+        else:  # pragma: no cover - a file with more leftover macros than that
+            raise XacroError(f"more than {MAX_IGNORED_MACROS} undefined macros", file=source)
         return UrdfDocument(
             source=source,
             xml=xml,
@@ -217,6 +228,47 @@ def run(source: Path, cfg: XacroConfig) -> UrdfDocument:
     data, substituted = _substitute_plain(data, source, cfg, resolver)
     notes += substituted
     return UrdfDocument(source=source, xml=data, resolver=resolver, notes=tuple(notes))
+
+
+MAX_IGNORED_MACROS = 100
+"""Distinct undefined macros ignored in one plain ``.urdf`` before giving up."""
+_UNKNOWN_MACRO = re.compile(r"unknown macro name: xacro:([\w.-]+)$")
+
+
+def _without_unknown_macro(
+    exc: XacroError, source: Path, cfg: XacroConfig, data: bytes, notes: list[Note]
+) -> bytes | None:
+    """``data`` without the calls of the macro ``exc`` says is unknown, where the source
+    is a plain ``.urdf`` (leftover ``<xacro:grey/>`` calls of an export whose macro
+    definitions are not shipped: urdfdom ignores unknown elements, and so do we, each
+    macro one warning). None where that does not apply (a ``.xacro`` file, a call
+    inside an included file)."""
+    match = _UNKNOWN_MACRO.search(exc.detail)
+    if match is None or source.suffix.lower() != ".urdf":
+        return None
+    if Path(str(exc.file)).resolve() != source.resolve():
+        return None
+    name = match.group(1)
+    root = etree.fromstring(data)
+    calls = [
+        el
+        for el in root.iter()
+        if isinstance(el.tag, str)
+        and etree.QName(el).namespace in XACRO_NAMESPACES
+        and etree.QName(el).localname == name
+    ]
+    if not calls:
+        return None
+    for el in calls:
+        parent = el.getparent()
+        if parent is not None:
+            parent.remove(el)
+    message = (
+        f"macro 'xacro:{name}' is defined nowhere (its definitions are not shipped); "
+        f"{len(calls)} call(s) ignored, as urdfdom ignores unknown elements"
+    )
+    notes.append(_liberty(cfg, source, f"<xacro:{name}>", message, XacroError))
+    return etree.tostring(root.getroottree(), encoding="utf-8", xml_declaration=True)
 
 
 def _liberty(

@@ -48,6 +48,7 @@ from ...errors import MeshError
 from ...geometry import primitive_geom
 from ...ir import (
     RGBA,
+    Collision,
     Geom,
     LoadedMesh,
     Material,
@@ -67,7 +68,7 @@ from . import cache as mesh_cache
 
 log = logging.getLogger(__name__)
 
-FORMATS = (".stl", ".obj", ".dae", ".ply")
+FORMATS = (".stl", ".obj", ".dae", ".ply", ".glb", ".gltf")
 LFS_MAGIC = b"version https://git-lfs.github.com/spec/v1"
 
 
@@ -76,7 +77,8 @@ class MeshConfig:
     max_faces: int = 200_000
     """MuJoCo's STL reader refuses more faces than this; larger meshes are decimated."""
     strict_visual: bool = False
-    """A missing or unusable visual mesh is an error, not a warning that drops it."""
+    """A missing or unusable mesh (visual or collision) is an error, not a warning that
+    drops the geom (``--strict``)."""
     cache_dir: Path | None = None
     """None: the default cache folder (see :func:`urdf2mjcf.cache.default_cache_dir`)."""
     use_cache: bool = True
@@ -106,7 +108,9 @@ def run(model: Model, cfg: MeshConfig) -> Model:
     cache = _open_cache(cfg)
 
     # Load in document order: link by link, visuals then collisions.
+    kept_links, changed = [], False
     for link in robot.links:
+        dropped: list[Collision] = []
         for role, items in (("visual", link.visuals), ("collision", link.collisions)):
             for item in items:
                 ref = item.geometry
@@ -116,10 +120,27 @@ def run(model: Model, cfg: MeshConfig) -> Model:
                 problem = _ensure_loaded(ref, cfg, cache, meshes, failed, palette, notes)
                 if problem is None:
                     continue
-                if role == "collision" or cfg.strict_visual or problem.fatal:
+                if cfg.strict_visual or problem.fatal:
                     raise MeshError(str(problem), file=robot.source, element=where)
-                notes.append(Note("warning", where, f"{problem}; visual dropped"))
-                log.info("%s: %s; visual dropped", where, problem)
+                # missing, ambiguous or undecodable: the robot without it, as RViz shows it
+                notes.append(Note("warning", where, f"{problem}; {role} dropped"))
+                log.info("%s: %s; %s dropped", where, problem, role)
+                if role == "collision":
+                    dropped.append(item)  # type: ignore[arg-type]
+        if dropped:
+            left = tuple(c for c in link.collisions if not any(c is d for d in dropped))
+            if not left:
+                notes.append(
+                    Note(
+                        "warning",
+                        f"link '{link.name}'",
+                        "has no collision geometry left: its collision meshes were dropped",
+                    )
+                )
+            link, changed = dataclasses.replace(link, collisions=left), True
+        kept_links.append(link)
+    if changed:
+        robot = dataclasses.replace(robot, links=tuple(kept_links))
 
     out = _Assets(
         {m.name: m for m in model.materials},
@@ -149,6 +170,7 @@ def run(model: Model, cfg: MeshConfig) -> Model:
 
     return dataclasses.replace(
         model,
+        robot=robot,
         meshes=meshes,
         mesh_assets=mesh_assets,
         textures=tuple(out.textures.values()),
