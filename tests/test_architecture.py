@@ -3,7 +3,7 @@
 Two checks, both read from the source tree itself: every module of
 ``urdf2mjcf/`` is listed in docs/architecture.md's module table (and every
 listed module exists), and imports point one way:
-support modules -> passes -> api -> facility -> runner -> envs -> cli.
+support modules -> passes -> api (and the certificate) -> facility -> runner -> envs -> cli.
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ def _layer(module: str) -> str:
         return head
     if head in ("api", "report"):
         return "api"
+    if head == "certify":  # the certificate runs after the passes, beside api; verify is a command
+        return "cli" if parts[-1] == "command" else "api"
     if head in ("cli", "__main__", "batch"):  # batch: a command over api and executors
         return "cli"
     return "support"

@@ -10,8 +10,11 @@ from typing import Any
 
 from . import mjmodel
 from . import output as out
-from .errors import OutputError
-from .ir import Model
+from .cache import default_cache_dir
+from .certify import Certificate, CertificateFailed, CertifyConfig
+from .certify.tolerances import Tolerances
+from .errors import ConversionError, OutputError
+from .ir import Model, UrdfDocument
 from .passes import (
     actuators,
     collision,
@@ -44,6 +47,8 @@ class ConvertOptions:
     emit: emit.EmitConfig = field(default_factory=emit.EmitConfig)
     extension: extension.ExtensionConfig = field(default_factory=extension.ExtensionConfig)
     validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
+    certify: CertifyConfig = field(default_factory=CertifyConfig)
+    """The fidelity certificate of the written model (see :mod:`urdf2mjcf.certify`)."""
     scene: bool = True
     """Also write ``scene.xml`` (floor, light, sky) beside the robot."""
     overwrite: bool = False
@@ -76,11 +81,17 @@ def make_options(
     validate_model: bool = True,
     overwrite: bool = False,
     trust_xacro: bool | None = None,
+    certify: bool = True,
+    verify: bool = False,
+    tolerances: Tolerances | None = None,
 ) -> ConvertOptions:
     """Keyword options (as :func:`convert` takes them) -> :class:`ConvertOptions`.
 
     ``trust_xacro`` runs a description's code as ROS's xacro does; ``None`` takes it
-    from ``$URDF2MJCF_TRUST_XACRO`` (default: expressions are checked)."""
+    from ``$URDF2MJCF_TRUST_XACRO`` (default: expressions are checked). ``certify``:
+    compute the certificate (with validation); ``verify``: compute it even without
+    validation and fail the conversion (:class:`~urdf2mjcf.certify.CertificateFailed`,
+    nothing written) when it fails, against ``tolerances``."""
     from .passes.xacro_guard import trust_from_env
 
     return ConvertOptions(
@@ -121,6 +132,14 @@ def make_options(
         ),
         extension=extension.ExtensionConfig(enabled=mujoco_extension, check=validate_model),
         validate=validate.ValidateConfig(enabled=validate_model),
+        certify=CertifyConfig(
+            enabled=certify,
+            enforce=verify,
+            tolerances=tolerances or Tolerances(),
+            cache_root=(Path(cache_dir) if cache_dir else default_cache_dir())
+            if use_cache
+            else None,
+        ),
         scene=scene,
         overwrite=overwrite,
     )
@@ -128,6 +147,14 @@ def make_options(
 
 def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
     """Run passes 1-6 in memory: no file is written."""
+    _doc, model, result = _build(source, options)
+    return model, result
+
+
+def _build(
+    source: str | Path, options: ConvertOptions
+) -> tuple[UrdfDocument, Model, emit.EmitResult]:
+    """:func:`build`, and the xacro pass's document (the certificate's reference reads it)."""
     mjmodel.make_room()  # before the first compile of this conversion
     doc = xacro.run(Path(source), options.xacro)
     model = parse.run(doc, options.parse)
@@ -138,7 +165,7 @@ def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.Emit
     model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
-    return replace(model, notes=model.notes + result.notes), result
+    return doc, replace(model, notes=model.notes + result.notes), result
 
 
 def convert(
@@ -168,7 +195,7 @@ def convert(
         )
     out.check_target(output, options.overwrite, (scene_name,) if options.scene else ())
 
-    model, result = build(source, options)
+    doc, model, result = _build(source, options)
     files = dict(result.files)
     files[output.name] = result.xml
     check = output
@@ -178,12 +205,20 @@ def convert(
         )
         check = output.with_name(scene_name)
     validated: list = []
+    certificates: list[Certificate] = []
 
     def run_validation(staged: Path) -> None:
         staged_target = staged.with_name(check.name)
         validated.append(
             validate.run(staged_target, options.validate, report_as=check, files=list(files))
         )
+        cfg = options.certify
+        if cfg.enforce or (cfg.enabled and options.validate.enabled):
+            # the staged files, before they are installed: --verify can still refuse them
+            compiled = validated[0].model if validated[0] is not None else None
+            certificates.append(_certificate(doc, model, staged, list(files), cfg, compiled))
+            if cfg.enforce and not certificates[0].passed:
+                raise CertificateFailed(certificates[0], file=output)
 
     written = out.write_atomic(output, files, run_validation)
     robot = model.robot
@@ -201,4 +236,49 @@ def convert(
         notes=model.notes,
         model=model,
         compiled=validated[0].model if validated and validated[0] else None,
+        certificate=certificates[0] if certificates else None,
     )
+
+
+def _certificate(
+    doc: UrdfDocument,
+    model: Model,
+    staged: Path,
+    files: list[str],
+    cfg: CertifyConfig,
+    compiled: Any = None,
+) -> Certificate:
+    """The certificate of the staged robot file against the description ``doc``.
+
+    ``compiled``: what validation compiled from the staged files (``scene.xml``, which
+    includes the robot file, or the robot file itself), reused: a second compile of
+    the robot costs a third of a warm conversion. None: the robot file is compiled.
+
+    A description the reference cannot read, or a model it cannot match, gives a
+    certificate that is not computed (and so not passed) rather than a failed
+    conversion; ``--verify`` then refuses it."""
+    from .certify import certify, compile_written
+    from .certify.reference import load
+
+    if not model.robot.links:
+        return Certificate.not_computed("the description has no links", cfg.tolerances)
+    try:
+        m = compiled if compiled is not None else compile_written(staged, files)
+        ref = load(doc)
+        return certify(
+            ref,
+            m,
+            tolerances=cfg.tolerances,
+            model=model,
+            notes=model.notes,
+            samples=cfg.samples,
+            seed=cfg.seed,
+            cache_root=cfg.cache_root,
+            model_path=staged,
+        )
+    except ConversionError as exc:
+        log.info("certificate not computed: %s", exc)
+        return Certificate.not_computed(exc.detail, cfg.tolerances)
+    except Exception as exc:  # a bug in the certificate must not lose a good conversion
+        log.warning("certificate not computed: internal error: %r", exc, exc_info=True)
+        return Certificate.not_computed(f"internal error: {type(exc).__name__}: {exc}")

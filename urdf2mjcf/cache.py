@@ -66,10 +66,17 @@ KINDS = {
     "hull_gap": "hull gaps",
     "hulls": "convex hulls",
     "meshes": "loaded meshes",
+    "certificate": "collision figures of certificates",
 }
 """Every sub-folder we write, with what it holds; ``clear`` touches nothing else."""
 
-SUFFIXES = {"coacd": ".npz", "hull_gap": ".json", "hulls": ".npz", "meshes": ".bin"}
+SUFFIXES = {
+    "coacd": ".npz",
+    "hull_gap": ".json",
+    "hulls": ".npz",
+    "meshes": ".bin",
+    "certificate": ".json",
+}
 """The file name suffix of each kind's entries (the stem is a :func:`make_key`)."""
 
 DEFAULT_MAX_MB = 2048

@@ -13,7 +13,7 @@ import time
 import traceback
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -25,6 +25,9 @@ from .passes.collision import CollisionConfig
 from .passes.inertia import InertiaConfig
 from .passes.meshes import MeshConfig
 from .untrusted import printable
+
+if TYPE_CHECKING:
+    from .certify import Certificate
 
 DENSITY = FiniteFloat(0.0, 1e6, low_open=True)
 """kg/m^3: above 0 (nothing is massless by density), at most 1e6 (osmium is 2.3e4)."""
@@ -151,7 +154,10 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 @click.option("--no-scene", is_flag=True, help="Do not write scene.xml.")
 @click.option("--overwrite", is_flag=True, help="Replace existing output files.")
 @click.option(
-    "--strict", is_flag=True, help="A missing or unreadable visual mesh is an error, not a warning."
+    "--strict",
+    is_flag=True,
+    help="A missing or unreadable mesh (visual or collision) is an error, not a warning "
+    "that drops it.",
 )
 @click.option(
     "--trust-xacro",
@@ -161,6 +167,20 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
 )
 @click.option(
     "--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo."
+)
+@click.option(
+    "--verify",
+    is_flag=True,
+    help="Fail (exit 1, nothing written) when the certificate of the written model against "
+    "the description fails (see 'urdf2mjcf verify --help').",
+)
+@click.option(
+    "--tolerance",
+    "tolerances",
+    multiple=True,
+    type=KeyedFloat(FiniteFloat(0.0, 1e6), "NAME"),
+    metavar="NAME=VALUE",
+    help="Change one of the certificate's tolerances (repeatable; the names: docs/cli.md).",
 )
 @click.option(
     "--cache-dir",
@@ -220,6 +240,8 @@ def urdf2mjcf_command(
     strict: bool,
     trust_xacro: bool,
     no_validate: bool,
+    verify: bool,
+    tolerances: tuple[tuple[str, float], ...],
     cache_dir: Path | None,
     no_cache: bool,
     jobs: int,
@@ -234,10 +256,13 @@ def urdf2mjcf_command(
     xacro arguments are given as NAME:=VALUE, exactly as with ROS.
 
     Many robots into one tree: 'urdf2mjcf batch PATHS... -o OUT' (see its --help).
-    The cache: 'urdf2mjcf cache info|clear'.
+    The cache: 'urdf2mjcf cache info|clear'. Any model against its description:
+    'urdf2mjcf verify SOURCE MODEL.xml' (see its --help).
     """
     from . import api  # keep `--help` fast
     from . import output as out
+    from .certify import CertificateFailed
+    from .certify.tolerances import Tolerances
 
     _configure_logging(verbose, quiet)
     if report_path:
@@ -280,8 +305,14 @@ def urdf2mjcf_command(
             validate_model=not no_validate,
             overwrite=overwrite,
             trust_xacro=True if trust_xacro else None,  # None: $URDF2MJCF_TRUST_XACRO
+            verify=verify,
+            tolerances=Tolerances().with_values(tolerances),
         )
-        report = api.convert(source, output, options)
+        try:
+            report = api.convert(source, output, options)
+        except CertificateFailed as exc:  # --verify: the input was fine, the result is not
+            _echo_certificate_failures(exc.certificate, verbose)
+            sys.exit(1)  # as batch does: run_command passes SystemExit through
         if reserved is not None:
             reserved.write(out.json_bytes(report.to_dict(), "urdf2mjcf"))
             batch.last(reserved.commit)
@@ -289,6 +320,19 @@ def urdf2mjcf_command(
         _echo_notes(report.notes, verbose)
         click.echo(f"wrote {output}")
         click.echo(report.summary())
+        if report.certificate is not None:
+            if verbose:
+                click.echo(printable(report.certificate.table()), err=True)
+            click.echo(printable(report.certificate.summary()))
+
+
+def _echo_certificate_failures(certificate: Certificate, verbose: int) -> None:
+    """Each failing figure on its own stderr line, then the one-line summary."""
+    if verbose:
+        click.echo(printable(certificate.table()), err=True)
+    for failure in certificate.failures:
+        click.echo(printable(f"failed: {failure}"), err=True)
+    click.echo(printable(f"{certificate.summary()}; nothing written"), err=True)
 
 
 ERROR_LINE_MAX = 2000
@@ -451,9 +495,10 @@ def _terminate_cleanly() -> _SigtermHandler:
 
 
 def urdf2mjcf_main() -> None:
-    # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots;
-    # anything else is a conversion, whose first argument is the SOURCE file (a file
-    # named 'cache' or 'batch' is given as ./cache, ./batch).
+    # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
+    # `urdf2mjcf verify ...` certifies a model; anything else is a conversion, whose first
+    # argument is the SOURCE file (a file named 'cache', 'batch' or 'verify' is given as
+    # ./cache, ./batch, ./verify).
     args = sys.argv[1:]
     if args[:1] == ["cache"]:
         run_command(cache_group, args[1:], prog_name="urdf2mjcf cache")
@@ -461,6 +506,10 @@ def urdf2mjcf_main() -> None:
         from .batch import batch_command
 
         run_command(batch_command, args[1:], prog_name="urdf2mjcf batch")
+    if args[:1] == ["verify"]:
+        from .certify.command import verify_command
+
+        run_command(verify_command, args[1:], prog_name="urdf2mjcf verify")
     run_command(urdf2mjcf_command)
 
 

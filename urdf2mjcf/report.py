@@ -28,6 +28,9 @@ class Report:
     compiled: Any = field(default=None, repr=False, compare=False)
     """The ``mujoco.MjModel`` that validation compiled from the files written
     (``scene.xml``, or the robot with ``scene=False``); None without validation."""
+    certificate: Any = field(default=None, repr=False, compare=False)
+    """The :class:`~urdf2mjcf.certify.Certificate` of the files written against the
+    description (None when not computed: ``--no-validate`` without ``--verify``)."""
 
     def of_kind(self, kind: str) -> tuple[Note, ...]:
         return tuple(n for n in self.notes if n.kind == kind)
@@ -68,6 +71,11 @@ class Report:
             "notes": [
                 {"kind": n.kind, "element": n.element, "message": n.message} for n in self.notes
             ],
+            "certificate": (
+                self.certificate.to_dict()
+                if self.certificate is not None
+                else {"computed": False, "why": "no validation (--no-validate) and no --verify"}
+            ),
         }
 
     def summary(self) -> str:

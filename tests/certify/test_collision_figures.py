@@ -1,0 +1,215 @@
+"""The certificate's collision figures against figures computed here: analytic ones
+for shapes we write, trimesh's proximity queries on a robot written by others."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+import trimesh
+from lxml import etree
+
+from tests.corpus import example_robot_data_share, example_robot_data_urdfs
+from urdf2mjcf import api
+from urdf2mjcf.certify import reference
+from urdf2mjcf.certify.collision import HAUSDORFF_MM, HAUSDORFF_REL, collision_section
+from urdf2mjcf.passes import xacro
+
+INERTIAL = (
+    '<inertial><mass value="1"/>'
+    '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'
+)
+
+
+def convert_and_load(source: Path, out_dir: Path) -> tuple[reference.Reference, Path]:
+    out = out_dir / "robot.xml"
+    api.convert(source, out, scene=False)
+    return reference.load(xacro.run(source, api.make_options().xacro)), out
+
+
+def one_link(tmp_path: Path, collision: str) -> Path:
+    src = tmp_path / "robot.urdf"
+    src.write_text(
+        f'<robot name="r"><link name="body"><collision>{collision}</collision>'
+        f"{INERTIAL}</link></robot>"
+    )
+    return src
+
+
+def edit_geom(xml: Path, name: str, **attrs: str | None) -> mujoco.MjModel:
+    """The written MJCF with geom ``name``'s attributes replaced, compiled from disk."""
+    tree = etree.parse(str(xml))
+    (geom,) = tree.getroot().iterfind(f".//geom[@name='{name}']")
+    for key, value in attrs.items():
+        if value is None:
+            geom.attrib.pop(key, None)
+        else:
+            geom.set(key, value)
+    tree.write(str(xml))
+    return mujoco.MjModel.from_xml_path(str(xml))
+
+
+def test_primitives_kept_exact_are_measured_exact(tmp_path: Path) -> None:
+    src = tmp_path / "robot.urdf"
+    links = {
+        "box": '<box size="0.1 0.2 0.3"/>',
+        "cyl": '<cylinder radius="0.04" length="0.25"/>',
+        "ball": '<sphere radius="0.07"/>',
+    }
+    body = "".join(
+        f'<link name="{n}"><collision><origin xyz="0.01 0.02 0.03" rpy="0.3 0.2 0.1"/>'
+        f"<geometry>{g}</geometry></collision>{INERTIAL}</link>"
+        for n, g in links.items()
+    )
+    joints = "".join(
+        f'<joint name="j{n}" type="fixed"><parent link="box"/><child link="{n}"/>'
+        f'<origin xyz="0 0 {k}"/></joint>'
+        for k, n in enumerate(["cyl", "ball"], 1)
+    )
+    src.write_text(f'<robot name="p">{body}{joints}</robot>')
+    ref, out = convert_and_load(src, tmp_path)
+    section = collision_section(ref, mujoco.MjModel.from_xml_path(str(out)))
+    assert section["failures"] == []
+    for name in links:
+        entry = section["links"][name]
+        assert entry["source"] == "primitive" and entry["geoms"] == 1
+        assert entry["volume_ratio"] == pytest.approx(1.0, abs=1e-9)
+        assert entry["hausdorff_mm"] < 1e-6 and entry["uncovered_mm"] < 1e-6
+
+    # A box 5 mm larger each side along x sticks out by exactly 5 mm.
+    m = edit_geom(out, "box_collision", size="0.055 0.1 0.15")
+    entry = collision_section(ref, m)["links"]["box"]
+    assert entry["hausdorff_mm"] == pytest.approx(5.0, abs=1e-6)
+    assert entry["volume_ratio"] == pytest.approx(0.055 / 0.05, rel=1e-9)
+    assert entry["uncovered_mm"] < 1e-6
+    # ... and one 5 mm smaller leaves the source's faces 5 mm outside it.
+    m = edit_geom(out, "box_collision", size="0.045 0.1 0.15")
+    entry = collision_section(ref, m)["links"]["box"]
+    assert entry["uncovered_mm"] == pytest.approx(5.0, abs=1e-3)
+
+
+def test_convex_mesh_is_its_own_hull(tmp_path: Path) -> None:
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=0.05)
+    mesh.export(tmp_path / "ball.stl")
+    ref, out = convert_and_load(
+        one_link(tmp_path, '<geometry><mesh filename="ball.stl"/></geometry>'), tmp_path
+    )
+    entry = collision_section(ref, mujoco.MjModel.from_xml_path(str(out)))["links"]["body"]
+    assert entry["source"] == "mesh" and entry["geoms"] == 1
+    assert mesh.convex_hull.volume / mesh.volume == pytest.approx(1.0, abs=1e-9)
+    assert entry["volume_ratio"] == pytest.approx(1.0, abs=1e-6)
+    assert entry["hausdorff_mm"] < 1e-3 and entry["uncovered_mm"] < 1e-3
+    assert entry["ok"]
+
+
+def test_l_shaped_mesh_hull_sticks_out_by_the_analytic_distance(tmp_path: Path) -> None:
+    # An L of arms a x t (depth d): its hull adds the triangle (t,t) (a,t) (t,a),
+    # whose hypotenuse's midpoint lies (a - t) / 2 from both inner faces: the
+    # farthest any point of the hull is from the L.
+    a, t, d = 0.2, 0.1, 0.05
+    arm1 = trimesh.creation.box(extents=[a, t, d])
+    arm1.apply_translation([a / 2, t / 2, 0])
+    arm2 = trimesh.creation.box(extents=[t, a, d])
+    arm2.apply_translation([t / 2, a / 2, 0])
+    shape = trimesh.boolean.union([arm1, arm2], engine="manifold")
+    shape.export(tmp_path / "l.stl")
+    ref, out = convert_and_load(
+        one_link(tmp_path, '<geometry><mesh filename="l.stl"/></geometry>'), tmp_path
+    )
+    m = mujoco.MjModel.from_xml_path(str(out))
+    entry = collision_section(ref, m)["links"]["body"]
+    assert entry["geoms"] == 1  # the conversion kept the hull (small hull gap)
+    furthest = (a - t) / 2 * 1e3
+    # The maximum over sampled points: exact for them, never beyond the true one.
+    assert 0.85 * furthest <= entry["hausdorff_mm"] <= furthest + 1e-6
+    l_area, corner = 2 * a * t - t * t, (a - t) ** 2 / 2
+    assert entry["volume_ratio"] == pytest.approx((l_area + corner) / l_area, rel=1e-5)
+    assert entry["uncovered_mm"] < 1e-6
+
+
+@pytest.fixture(scope="module")
+def ur5(tmp_path_factory: pytest.TempPathFactory) -> tuple[reference.Reference, Path]:
+    (src,) = [p for p in example_robot_data_urdfs() if p.name == "ur5_robot.urdf"]
+    return convert_and_load(src, tmp_path_factory.mktemp("ur5"))
+
+
+def _placed_collision_hull(xml: Path, link: str) -> trimesh.Trimesh:
+    """The link's written collision mesh, read here from its file and the MJCF's geom
+    pose, as the convex hull MuJoCo collides with."""
+    root = etree.parse(str(xml)).getroot()
+    (geom,) = root.iterfind(f".//body[@name='{link}']/geom[@name='{link}_collision']")
+    (asset,) = root.iterfind(f"asset/mesh[@name='{geom.get('mesh')}']")
+    meshdir = root.find("compiler").get("meshdir")
+    written = trimesh.load(xml.parent / meshdir / asset.get("file"), force="mesh")
+    assert isinstance(written, trimesh.Trimesh)
+    hull = written.convex_hull
+    pose = np.eye(4)
+    if geom.get("quat"):
+        pose[:3, :3] = trimesh.transformations.quaternion_matrix(
+            [float(x) for x in geom.get("quat").split()]
+        )[:3, :3]
+    if geom.get("pos"):
+        pose[:3, 3] = [float(x) for x in geom.get("pos").split()]
+    hull.apply_transform(pose)
+    return hull
+
+
+@pytest.mark.parametrize("link", ["forearm_link", "wrist_1_link"])
+def test_real_robot_figures_agree_with_trimesh(
+    ur5: tuple[reference.Reference, Path], link: str
+) -> None:
+    ref, xml = ur5
+    section = collision_section(ref, mujoco.MjModel.from_xml_path(str(xml)))
+    entry = section["links"][link]
+    name = {"forearm_link": "forearm", "wrist_1_link": "wrist1"}[link]
+    share = example_robot_data_share() / "example-robot-data/robots/ur_description"
+    source = trimesh.load(share / f"meshes/ur5/collision/{name}.stl", force="mesh")
+    assert isinstance(source, trimesh.Trimesh)
+    hull = _placed_collision_hull(xml, link)
+    # trimesh's own answer, on points of its own choosing.
+    points, _ = trimesh.sample.sample_surface(hull, 3000, seed=7)
+    _, dist, _ = trimesh.proximity.closest_point(source, points)
+    assert entry["hausdorff_mm"] == pytest.approx(dist.max() * 1e3, rel=0.1, abs=1.0)
+    assert entry["volume_ratio"] == pytest.approx(hull.volume / source.volume, rel=1e-3)
+    on_source, _ = trimesh.sample.sample_surface(source, 1000, seed=7)
+    assert hull.contains(on_source).mean() > 0.95 and entry["uncovered_mm"] < 0.5
+    assert entry["ok"] and section["failures"] == []
+
+
+def test_collision_mesh_swapped_for_a_big_box_is_flagged(
+    ur5: tuple[reference.Reference, Path], tmp_path: Path
+) -> None:
+    ref, xml = ur5
+    altered = tmp_path / "robot.xml"
+    altered.write_bytes(xml.read_bytes())
+    for sub in ("assets",):
+        (tmp_path / sub).symlink_to(xml.parent / sub)
+    m = edit_geom(altered, "forearm_link_collision", type="box", mesh=None, size="0.3 0.3 0.5")
+    section = collision_section(ref, m)
+    entry = section["links"]["forearm_link"]
+    assert not entry["ok"]
+    limit = max(HAUSDORFF_MM, HAUSDORFF_REL * entry["size_mm"])
+    assert entry["hausdorff_mm"] > limit
+    assert [f for f in section["failures"] if "forearm_link" in f]
+    assert all("forearm_link" in f for f in section["failures"])
+
+
+def test_figures_kept_in_the_cache_are_the_figures_measured(
+    ur5: tuple[reference.Reference, Path], tmp_path: Path
+) -> None:
+    """A warm certificate reads each link's figures back by content; a tampered entry
+    is a miss, measured again, never trusted."""
+    ref, xml = ur5
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    root = tmp_path / "cache"
+    fresh = collision_section(ref, m)
+    cold = collision_section(ref, m, cache_root=root)
+    entries = sorted((root / "certificate").glob("*.json"))
+    assert entries and cold == fresh
+    warm = collision_section(ref, m, cache_root=root)
+    assert warm == fresh
+    for entry in entries:
+        entry.write_text('{"hausdorff_mm": -1, "size_mm": "x"}')
+    assert collision_section(ref, m, cache_root=root) == fresh

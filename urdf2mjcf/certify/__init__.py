@@ -1,0 +1,334 @@
+"""The fidelity certificate: a compiled MJCF model against its URDF description.
+
+The description is read by an independent implementation of URDF (yourdfpy,
+:mod:`.reference`), the model is compiled by MuJoCo from the files on disk, and
+the two are compared figure by figure: link frames at home and at random
+configurations within the limits (:mod:`.kinematics`), joint types, axes,
+anchors, limits and mimic couplings, masses and the centre of mass
+(:mod:`.mass`), the mass matrix and gravity torques against pinocchio where it
+is installed (:mod:`.dynamics`), collision geometry per link
+(:mod:`.collision`) and the single-model lint checks run against the source
+(:mod:`.checks`). What the model changed on purpose is listed
+(:mod:`.changes`); every figure is held to a :class:`~.tolerances.Tolerances`.
+
+Used after every conversion (``api.convert``, on the staged files before they
+are installed; ``--verify`` makes a failing certificate fail the conversion)
+and by ``urdf2mjcf verify`` for any model against any description.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConversionError
+from ..ir import Model, Note
+from .kinematics import NameMap
+from .reference import Reference
+from .tolerances import Tolerances
+
+log = logging.getLogger(__name__)
+
+SAMPLES = 16
+"""Random configurations besides home (the certificate's cost is linear in them)."""
+DYNAMICS_SAMPLES = 3
+"""Random configurations (besides home) for the mass matrix and gravity torques."""
+
+__all__ = ["SAMPLES", "Certificate", "CertificateFailed", "CertifyConfig", "NameMap", "certify"]
+
+
+@dataclass(frozen=True)
+class CertifyConfig:
+    """How a conversion certifies itself."""
+
+    enabled: bool = True
+    """Compute the certificate (it needs the model compiled: off with ``--no-validate``
+    unless ``enforce``)."""
+    enforce: bool = False
+    """``--verify``: a failing certificate fails the conversion (nothing is written)."""
+    tolerances: Tolerances = field(default_factory=Tolerances)
+    samples: int = SAMPLES
+    seed: int = 0
+    cache_root: Path | None = None
+    """Where collision figures are kept by content (None: measured every time)."""
+
+
+@dataclass
+class Certificate:
+    """The figures, what failed and what the model changed on purpose."""
+
+    reference: str
+    """``"yourdfpy 0.0.60"``: the implementation that read the description."""
+    tolerances: Tolerances
+    sections: dict[str, Any] = field(default_factory=dict)
+    changes: list[dict[str, Any]] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+    why_not: str | None = None
+    """Why it was not computed (None: it was)."""
+
+    @property
+    def computed(self) -> bool:
+        return self.why_not is None
+
+    @property
+    def passed(self) -> bool:
+        return self.computed and not self.failures
+
+    @classmethod
+    def not_computed(cls, why: str, tolerances: Tolerances | None = None) -> Certificate:
+        return cls(reference="", tolerances=tolerances or Tolerances(), why_not=why)
+
+    def to_dict(self) -> dict[str, Any]:
+        if not self.computed:
+            return {"computed": False, "why": self.why_not, "passed": False, "failures": []}
+        implementation, _, version = self.reference.partition(" ")
+        return {
+            "computed": True,
+            "reference": {"implementation": implementation, "version": version},
+            "tolerances": self.tolerances.to_dict(),
+            **self.sections,
+            "changes": self.changes,
+            "passed": self.passed,
+            "failures": list(self.failures),
+        }
+
+    def summary(self) -> str:
+        """One line: passed with the headline figures, or FAILED with the first failures."""
+        if not self.computed:
+            return f"certificate: not computed ({self.why_not})"
+        if self.failures:
+            shown = "; ".join(self.failures[:3])
+            more = f"; and {len(self.failures) - 3} more" if len(self.failures) > 3 else ""
+            return f"certificate: FAILED: {shown}{more}"
+        f = self.sections.get("frames", {})
+        m = self.sections.get("mass", {})
+        n = len(self.changes)
+        return (
+            f"certificate: passed (frames {f.get('max_position_error_m', 0):.1g} m / "
+            f"{f.get('max_rotation_error_rad', 0):.1g} rad, mass {m.get('mjcf_kg', 0):.3f} kg = "
+            f"{m.get('urdf_kg', 0) + m.get('added_kg', 0) - m.get('welded_kg', 0):.3f} kg, "
+            f"{n} change{'' if n == 1 else 's'})"
+        )
+
+    def _failed(self, section: str) -> bool:
+        return any(f.startswith(section) for f in self.failures)
+
+    def table(self) -> str:
+        """A few lines for ``-v``: each figure, its tolerance and its verdict."""
+        if not self.computed:
+            return self.summary()
+        t = self.tolerances
+        s = self.sections
+        fr, jo, ma, dy = s["frames"], s["joints"], s["mass"], s["dynamics"]
+        rows = [
+            (
+                "frames",
+                f"{fr['max_position_error_m']:.2g} m, {fr['max_rotation_error_rad']:.2g} rad "
+                f"({fr['links']} links x {fr['configurations']} configurations)",
+                f"{t.frame_position_m:g} m, {t.frame_rotation_rad:g} rad",
+                self._failed("frames"),
+            ),
+            (
+                "joints",
+                f"{jo['checked']} checked, {len(jo['mismatches'])} mismatched",
+                "see docs/cli.md",
+                self._failed("joints"),
+            ),
+            (
+                "mass",
+                f"{ma['mjcf_kg']:.6g} kg, description {ma['urdf_kg']:.6g} kg"
+                + (f" + {ma['added_kg']:.3g} kg supplied" if ma["added_kg"] else "")
+                + (f", COM off {ma['com_error_m']:.2g} m" if ma["com_error_m"] is not None else ""),
+                f"{t.mass_relative:g} rel, {t.com_m:g} m",
+                self._failed("mass"),
+            ),
+            (
+                "dynamics",
+                (
+                    f"M {dy['mass_matrix_relative_error']:.2g}, "
+                    f"g {dy['gravity_relative_error']:.2g} ({dy['dofs']} dofs, {dy['reference']})"
+                )
+                if dy.get("computed")
+                else f"not computed ({dy.get('why')})",
+                f"{t.dynamics_relative:g} rel",
+                self._failed("dynamics"),
+            ),
+        ]
+        for name in ("collision", "checks"):
+            sec = s.get(name, {})
+            if sec.get("computed") is False:
+                text = f"not computed ({sec.get('why')})"
+            else:
+                items = sec.get("links" if name == "collision" else "checks", {})
+                bad = sum(
+                    1 for v in items.values() if isinstance(v, dict) and not v.get("ok", True)
+                )
+                text = f"{len(items)} {'links' if name == 'collision' else 'checks'}, {bad} out"
+            rows.append((name, text, "", self._failed(name)))
+        lines = [f"certificate against {self.reference}:"]
+        for name, value, tol, failed in rows:
+            verdict = "FAILED" if failed else "ok"
+            tol_text = f"  (tolerance {tol})" if tol else ""
+            lines.append(f"  {name:<10} {verdict:<6} {value}{tol_text}")
+        lines.append(f"  {'changes':<10} {len(self.changes)}")
+        return "\n".join(lines)
+
+
+class CertificateFailed(ConversionError):
+    """``--verify``: the conversion's certificate failed; nothing has been written.
+
+    A :class:`ConversionError` for callers of the API; the command line reports the
+    failing figures and exits with code 1 (the input was fine: the result is not)."""
+
+    def __init__(self, certificate: Certificate, file: Path | str | None = None):
+        self.certificate = certificate
+        first = certificate.failures[0] if certificate.failures else certificate.summary()
+        super().__init__(f"certificate failed: {first}; nothing written", file=file)
+
+
+def certify(
+    ref: Reference,
+    m: Any,
+    *,
+    tolerances: Tolerances | None = None,
+    names: NameMap | None = None,
+    model: Model | None = None,
+    notes: Iterable[Note] = (),
+    samples: int = SAMPLES,
+    seed: int = 0,
+    cache_root: Path | None = None,
+    model_path: Path | None = None,
+) -> Certificate:
+    """The certificate of the compiled model ``m`` against the description ``ref``.
+
+    ``cache_root``: where collision figures are kept by content (a warm conversion
+    measures nothing again); ``model_path``: the MJCF file ``m`` was compiled from
+    (lets the visual geoms be weighed).
+
+    ``model`` (and its ``notes``): our conversion's intermediate representation,
+    which says which inertials it supplied and why; without it (a model we did not
+    write) the links whose inertial a model may supply are found by rule. Raises an
+    InputError when the model has no body for the description's root link.
+    """
+    from . import changes as changes_mod
+    from . import dynamics, kinematics, mass
+
+    tol = tolerances or Tolerances()
+    mt = kinematics.match(ref, m, names)
+    configs = kinematics.sample_configurations(ref, samples, seed)
+    frames, failures, ref_frames = kinematics.frames_section(
+        mt, configs, tol.frame_position_m, tol.frame_rotation_rad
+    )
+    home = ref_frames[0]
+    joints, joint_failures, joint_changes = kinematics.joints_section(mt, home, tol)
+    amended: Mapping[str, mass.LinkInertial | None]
+    if model is not None:
+        amended = changes_mod.amended_by_conversion(model)
+    else:
+        amended = changes_mod.amended_by_rule(ref, free_root=mt.root_free is not None)
+    mass_sec, mass_failures, mass_changes = mass.mass_section(
+        mt, home, amended, tol.mass_relative, tol.com_m
+    )
+    dyn, dyn_failures = dynamics.dynamics_section(
+        mt, configs[: 1 + DYNAMICS_SAMPLES], amended, tol.dynamics_relative
+    )
+    collision, collision_failures = _collision(ref, m, tol, cache_root)
+    checks, check_failures = _checks(ref, m, tol, model_path)
+    listed = changes_mod.from_notes(notes)
+    seen = {c["element"] for c in listed}
+    extra = joint_changes + mass_changes + changes_mod.massless_with_inertia(ref)
+    listed += [c for c in extra if c["element"] not in seen]
+    return Certificate(
+        reference=ref.implementation,
+        tolerances=tol,
+        sections={
+            "frames": frames,
+            "joints": joints,
+            "mass": mass_sec,
+            "dynamics": dyn,
+            "collision": collision,
+            "checks": checks,
+        },
+        changes=listed,
+        failures=failures
+        + joint_failures
+        + mass_failures
+        + dyn_failures
+        + collision_failures
+        + check_failures,
+    )
+
+
+def _collision(
+    ref: Reference, m: Any, tol: Tolerances, cache_root: Path | None
+) -> tuple[dict[str, Any], list[str]]:
+    try:
+        from .collision import collision_section
+    except ImportError as exc:
+        return {"computed": False, "why": f"not available ({exc})"}, []
+    try:
+        result = collision_section(
+            ref,
+            m,
+            hausdorff_mm=tol.collision_hausdorff_mm,
+            hausdorff_rel=tol.collision_hausdorff_rel,
+            volume_ratio=(tol.collision_volume_ratio_min, tol.collision_volume_ratio_max),
+            cache_root=cache_root,
+        )
+    except ConversionError:
+        raise
+    except Exception as exc:  # a bug there must not hide the other figures
+        log.warning("certificate: collision figures failed: %s", exc, exc_info=True)
+        return {"computed": False, "why": f"internal error: {type(exc).__name__}: {exc}"}, []
+    failures = [
+        f"collision.{f}" if not f.startswith("collision") else f for f in result.get("failures", [])
+    ]
+    return {k: v for k, v in result.items() if k != "failures"}, failures
+
+
+def _checks(
+    ref: Reference, m: Any, tol: Tolerances, model_path: Path | None
+) -> tuple[dict[str, Any], list[str]]:
+    try:
+        from .checks import lint_section
+    except ImportError as exc:
+        return {"computed": False, "why": f"not available ({exc})"}, []
+    from ..mjmodel import home_data
+
+    try:
+        result = lint_section(
+            ref,
+            m,
+            home_data(m),
+            inertia_factor=tol.inertia_factor,
+            penetration_m=tol.penetration_m,
+            energy_growth=tol.energy_growth,
+            model_path=model_path,
+        )
+    except ConversionError:
+        raise
+    except Exception as exc:  # a bug there must not hide the other figures
+        log.warning("certificate: lint checks failed: %s", exc, exc_info=True)
+        return {"computed": False, "why": f"internal error: {type(exc).__name__}: {exc}"}, []
+    failures = [
+        f"checks.{f}" if not f.startswith("checks") else f for f in result.get("failures", [])
+    ]
+    return {k: v for k, v in result.items() if k != "failures"}, failures
+
+
+def compile_written(xml_path: Path, files: Iterable[str]) -> Any:
+    """``mujoco.MjModel`` of the written ``xml_path``: every file named in ``files``
+    (relative to its folder) read back from disk and compiled as MuJoCo opens it."""
+    from ..errors import ValidationError
+    from ..mjmodel import compile_xml
+
+    folder = xml_path.parent
+    written = {name: (folder / name).read_bytes() for name in files}
+    try:
+        return compile_xml(written[xml_path.name], written)
+    except ValueError as exc:
+        message = " ".join(str(exc).split())
+        raise ValidationError(f"MuJoCo rejected the model: {message}", file=xml_path) from None

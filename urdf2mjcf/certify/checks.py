@@ -1,0 +1,609 @@
+"""The checks single-model linters (mjcf-doctor, simcheck) run, made against the source.
+
+Each check reports ``ok``, a one-line ``detail`` and its figures; a failing one
+adds one line per offending link, geom pair or joint to ``failures`` (to ``warnings`` for
+the inertia and passive-energy checks: what they flag can be the description's own).
+
+``inertia``
+    The description's declared inertia against its own geometry: the link's
+    collision shape (its visuals when it has none; a mesh that is not watertight
+    counts as its convex hull) filled uniformly to the declared mass, both
+    tensors about their centres of mass in link axes. Flagged: a principal
+    moment ``inertia_factor`` or more off, or principal axes swapped (the
+    geometry's clearly smallest axis carries the clearly largest declared
+    moment). Links without ``<inertial>`` are not checked: the conversion
+    estimated theirs from this very geometry.
+``interpenetration``
+    Pairs of colliding geoms of different bodies that MuJoCo's collision
+    detection reports at home (so neither excluded nor parent-child filtered)
+    deeper than ``penetration_m``, each attributed: ``description`` when the
+    two links' source shapes overlap by that much too at the same pose (the
+    reference's frames), else ``conversion`` (a hull filling a cavity, a shape
+    moved). Only overlaps the conversion added fail the check; the
+    description's own are listed.
+``home_in_limits``
+    The home pose (``d_home``, else the keyframe ``home``, else ``qpos0``)
+    inside every joint's limits, the description's and the model's.
+``collision_matrix``
+    At least one robot geom collides with a floor of MuJoCo's default
+    ``contype=1 conaffinity=1``.
+``visual_massless``
+    Visual geoms (group 2) collide with nothing and weigh nothing: the model
+    compiled again without them has the same body masses and inertias
+    (measured when ``model_path`` is given).
+``passive_energy``
+    From home, actuation disabled, one second of simulation (at most
+    ``MAX_STEPS`` steps) with MuJoCo's energy enabled: kinetic plus potential
+    energy never exceeds its start by more than ``energy_growth`` of the
+    robot's energy scale (total mass x gravity x model extent) plus 1 mJ.
+    Gravity, damping and contacts only take energy away.
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .collision import (
+    SEED,
+    Primitive,
+    _largest,
+    _MeshDistance,
+    _sample_triangles,
+    _sample_union,
+    colliding_geoms,
+    geom_links,
+    source_shape,
+)
+
+if TYPE_CHECKING:
+    import mujoco
+    import trimesh
+
+    from .reference import Reference
+
+log = logging.getLogger(__name__)
+
+INERTIA_FACTOR = 10.0
+PENETRATION_M = 0.01
+"""Deeper than this at home is flagged: soft contacts settle within millimetres,
+and a hull bridging a joint's clearance reaches a few millimetres on real arms."""
+ENERGY_GROWTH = 0.01
+"""Allowed growth over a passive second, as a fraction of mass x gravity x extent."""
+ENERGY_FLOOR_J = 1e-3
+MAX_STEPS = 2000
+AXIS_SEPARATION = 4.0
+"""Principal moments at least this far apart make an axis "clearly" the smallest or
+the largest; the declared moment about it must be this far off to call the axes
+swapped. (2 flags the misaligned but plausible identified inertias of Panda's
+links 1-3 and hand; 4 still flags talos's rgbd_link, 15x about the wrong axis.)"""
+LIMIT_TOLERANCE = 1e-9
+OVERLAP_SAMPLES = 500
+"""Surface points per link when measuring how deep two source shapes overlap."""
+
+
+def _check(ok: bool, detail: str, **figures: Any) -> dict[str, Any]:
+    return {"ok": bool(ok), "detail": detail, **figures}
+
+
+# -- inertia ------------------------------------------------------------------
+
+
+def _solid(src: Any) -> tuple[trimesh.Trimesh | None, bool]:
+    """One closed mesh standing for the shape (parts concatenated) and whether a
+    part had to be replaced by its convex hull."""
+    import trimesh
+
+    parts: list[trimesh.Trimesh] = []
+    hulled = False
+    for p in src.primitives:
+        parts.append(trimesh.convex.convex_hull(p.cloud()))
+    for mesh in src.meshes:
+        if mesh.is_watertight and mesh.volume > 0:
+            parts.append(mesh)
+        else:
+            parts.append(mesh.convex_hull)
+            hulled = True
+    parts = [p for p in parts if p.volume > 0]
+    if not parts:
+        return None, hulled
+    solid = parts[0] if len(parts) == 1 else trimesh.util.concatenate(parts)
+    return (solid if isinstance(solid, trimesh.Trimesh) else None), hulled
+
+
+def _inertia_of(mesh: trimesh.Trimesh, mass: float) -> np.ndarray:
+    """Inertia tensor about the centre of mass, link axes, uniform density at ``mass``."""
+    props = mesh.mass_properties
+    return np.asarray(props["inertia"]) * (mass / props["mass"])
+
+
+def inertia_link(link: Any, ref: Reference, factor: float) -> dict[str, Any] | str:
+    """The inertia comparison of one link, or why there is none."""
+    inertial = link.inertial
+    if inertial is None:
+        return "estimated by the conversion"
+    if inertial.mass is None or inertial.mass <= 0 or inertial.inertia is None:
+        return "no mass"
+    rot = np.eye(3) if inertial.origin is None else np.asarray(inertial.origin)[:3, :3]
+    declared = rot @ np.asarray(inertial.inertia, float) @ rot.T
+    dec = np.sort(np.linalg.eigvalsh(declared))
+    if dec[0] <= 1e-12 * max(dec[2], 1e-300) or dec[0] + dec[1] < dec[2] * (1 - 1e-6):
+        return "declared inertia not physical: the conversion repaired it"
+    src = source_shape(ref, link)
+    shape = "collision"
+    if src.empty:
+        src, shape = source_shape(ref, link, "visuals"), "visual"
+    solid, hulled = _solid(src) if not src.empty else (None, False)
+    if solid is None:
+        return "no geometry with a volume"
+    geometric = _inertia_of(solid, float(inertial.mass))
+    lam, axes = np.linalg.eigh(geometric)
+    if lam[0] <= 0:
+        return "no geometry with a volume"
+    ratios = dec / lam
+    off = float(max(ratios.max(), 1 / ratios.min()))
+    # Swapped axes: where the geometry clearly has its smallest (largest) moment, the
+    # declared tensor has one clearly above its smallest (below its largest).
+    along = np.array([a @ declared @ a for a in axes.T])  # declared moment on each mesh axis
+    sep = AXIS_SEPARATION
+    swapped = bool(
+        (lam[1] / lam[0] >= sep and along[0] / dec[0] >= sep)
+        or (lam[2] / lam[1] >= sep and dec[2] / along[2] >= sep)
+    )
+    return {
+        "shape": shape + (" (convex hull)" if hulled else ""),
+        "declared": [float(x) for x in dec],
+        "geometry": [float(x) for x in lam],
+        "factor": round(off, 3),
+        "swapped": swapped,
+        "ok": off < factor and not swapped,
+    }
+
+
+def check_inertia(ref: Reference, factor: float) -> tuple[dict[str, Any], list[str]]:
+    links: dict[str, dict[str, Any]] = {}
+    skipped: dict[str, str] = {}
+    failures: list[str] = []
+    for link in ref.urdf.robot.links:
+        try:
+            entry = inertia_link(link, ref, factor)
+        except Exception as exc:  # a degenerate mesh: said, not fatal
+            skipped[link.name] = f"not measured: {' '.join(str(exc).split())[:100]}"
+            continue
+        if isinstance(entry, str):
+            skipped[link.name] = entry
+            continue
+        links[link.name] = entry
+        if not entry["ok"]:
+            what = (
+                "principal axes swapped"
+                if entry["swapped"]
+                else f"principal moments {entry['factor']:.3g}x off"
+            )
+            failures.append(
+                f"inertia {link.name}: declared inertia against its {entry['shape']} "
+                f"at the declared mass: {what}"
+            )
+    worst = max((e["factor"] for e in links.values()), default=None)
+    detail = (
+        f"{len(links)} links against their geometry, worst factor {worst:.3g}"
+        if links
+        else "no link with both an inertial and geometry"
+    )
+    if failures:
+        detail = f"{len(failures)} of {len(links)} links implausible"
+    check = _check(
+        not failures, detail, checked=len(links), worst_factor=worst, links=links, skipped=skipped
+    )
+    return check, failures
+
+
+# -- home pose ----------------------------------------------------------------
+
+
+def home_data(m: mujoco.MjModel, d_home: mujoco.MjData | None) -> mujoco.MjData:
+    """A fresh MjData at home, forward-computed (the caller's data is left alone)."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    if d_home is not None:
+        d.qpos[:] = d_home.qpos
+        d.qvel[:] = d_home.qvel
+        if m.na:
+            d.act[:] = d_home.act
+        d.mocap_pos[:] = d_home.mocap_pos
+        d.mocap_quat[:] = d_home.mocap_quat
+    elif m.nkey:
+        key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
+        mujoco.mj_resetDataKeyframe(m, d, key if key >= 0 else 0)
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def _scalar_joints(m: mujoco.MjModel) -> dict[str, int]:
+    """Hinge and slide joints by name: their qpos address."""
+    import mujoco
+
+    kinds = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+    return {
+        m.joint(j).name: int(m.jnt_qposadr[j])
+        for j in range(m.njnt)
+        if int(m.jnt_type[j]) in kinds and m.joint(j).name
+    }
+
+
+def home_cfg(ref: Reference, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+    """yourdfpy's configuration at the model's home (joints matched by name; 0 else)."""
+    adr = _scalar_joints(m)
+    return np.array([float(d.qpos[adr[n]]) if n in adr else 0.0 for n in ref.actuated_joints])
+
+
+def check_home(
+    ref: Reference, m: mujoco.MjModel, d: mujoco.MjData
+) -> tuple[dict[str, Any], list[str]]:
+    adr = _scalar_joints(m)
+    failures: list[str] = []
+    outside: list[dict[str, Any]] = []
+    zero_outside: list[str] = []
+    for joint in ref.urdf.robot.joints:
+        if joint.type not in ("revolute", "prismatic") or joint.limit is None:
+            continue
+        lo, hi = joint.limit.lower, joint.limit.upper
+        if lo is None or hi is None or lo >= hi:
+            continue  # no range: the conversion leaves it unlimited
+        if not lo <= 0.0 <= hi:
+            zero_outside.append(joint.name)
+        if joint.name not in adr or joint.mimic is not None:
+            continue
+        q = float(d.qpos[adr[joint.name]])
+        if not lo - LIMIT_TOLERANCE <= q <= hi + LIMIT_TOLERANCE:
+            outside.append({"joint": joint.name, "home": q, "range": [lo, hi], "of": "description"})
+    for j in range(m.njnt):
+        name = m.joint(j).name
+        if not m.jnt_limited[j] or name not in adr:
+            continue
+        lo, hi = (float(x) for x in m.jnt_range[j])
+        q = float(d.qpos[adr[name]])
+        if not lo - LIMIT_TOLERANCE <= q <= hi + LIMIT_TOLERANCE:
+            if not any(o["joint"] == name for o in outside):
+                outside.append({"joint": name, "home": q, "range": [lo, hi], "of": "model"})
+    for o in outside:
+        failures.append(
+            f"home {o['joint']}: home position {o['home']:.6g} outside the {o['of']}'s "
+            f"limits [{o['range'][0]:.6g}, {o['range'][1]:.6g}]"
+        )
+    detail = (
+        "home inside every joint's limits"
+        if not outside
+        else f"{len(outside)} joints at home outside their limits"
+    )
+    if zero_outside and not outside:
+        detail += f" ({len(zero_outside)} of the description's zero positions are not: clamped)"
+    return _check(not outside, detail, outside=outside, zero_outside=zero_outside), failures
+
+
+# -- collisions ---------------------------------------------------------------
+
+
+def check_collision_matrix(m: mujoco.MjModel, ref: Reference) -> dict[str, Any]:
+    geoms = colliding_geoms(m)
+    owner = geom_links(ref, m, geoms)
+    robot = [g for g in geoms if m.geom_bodyid[g] != 0 or g in owner]  # not the scene's
+    floor = [g for g in robot if (m.geom_contype[g] & 1) or (m.geom_conaffinity[g] & 1)]
+    figures = {"floor_geoms": len(floor), "colliding_geoms": len(robot)}
+    if floor:
+        detail = f"{len(floor)} of {len(robot)} colliding geoms can touch a default floor"
+        return _check(True, detail, **figures)
+    if not any(link.collisions for link in ref.urdf.robot.links):
+        detail = "the description has no collision geometry, nor has the model"
+        return _check(True, detail, **figures)
+    return _check(False, "no geom can touch a floor of contype=1 conaffinity=1", **figures)
+
+
+def _geom_label(m: mujoco.MjModel, g: int) -> str:
+    import mujoco
+
+    name = m.geom(g).name
+    if name:
+        return name
+    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[g])) or "world"
+    k = g - int(m.body_geomadr[m.geom_bodyid[g]])
+    return f"{body} geom #{k}"
+
+
+@dataclass
+class _Placed:
+    """A link's source collision shape placed in the root frame, with what measuring
+    depths into it needs (built once per link: several pairs share a link)."""
+
+    prims: list[Primitive]
+    meshes: list[Any]
+    distances: list[_MeshDistance] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, ref: Reference, link: Any, pose: np.ndarray) -> _Placed:
+        src = source_shape(ref, link)
+        meshes = []
+        for mesh in src.meshes:
+            mesh = mesh.copy()
+            mesh.apply_transform(pose)
+            meshes.append(mesh)
+        prims = [Primitive(p.kind, p.size, pose @ p.pose) for p in src.primitives]
+        rng = np.random.default_rng(SEED)
+        return cls(prims, meshes, [_MeshDistance(x, rng) for x in meshes])
+
+    def bounds(self) -> np.ndarray | None:
+        clouds = [p.cloud() for p in self.prims] + [np.asarray(x.vertices) for x in self.meshes]
+        if not clouds:
+            return None
+        pts = np.vstack(clouds)
+        return np.array([pts.min(axis=0), pts.max(axis=0)])
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        pts = [_sample_union(self.prims, n, rng)] if self.prims else []
+        pts += [_sample_triangles(np.asarray(x.triangles), n, rng) for x in self.meshes]
+        return np.vstack(pts)
+
+    def depth(self, points: np.ndarray) -> float:
+        """Largest depth of ``points`` inside the shape (0 when none is inside): primitives
+        exactly; meshes by trimesh's ray containment test and the distance to their
+        surface (the largest exactly, as the collision figures' distances)."""
+        depth = 0.0
+        for p in self.prims:
+            depth = max(depth, float(np.max(-p.sdf(points), initial=0.0)))
+        for mesh, dist in zip(self.meshes, self.distances, strict=True):
+            inside = np.asarray(mesh.contains(points), bool)
+            if inside.any():
+                depth = max(depth, _largest([dist], points[inside]))
+        return depth
+
+
+def source_overlap(a: _Placed, b: _Placed, samples: int = OVERLAP_SAMPLES) -> float:
+    """How deep two placed source shapes overlap (m): the deepest of either surface's
+    sampled points inside the other shape. 0 when their bounding boxes are apart."""
+    ba, bb = a.bounds(), b.bounds()
+    if ba is None or bb is None or (ba[0] > bb[1]).any() or (bb[0] > ba[1]).any():
+        return 0.0
+    rng = np.random.default_rng(SEED)
+    return max(b.depth(a.sample(samples, rng)), a.depth(b.sample(samples, rng)))
+
+
+def check_interpenetration(
+    ref: Reference, m: mujoco.MjModel, d: mujoco.MjData, penetration: float
+) -> tuple[dict[str, Any], list[str]]:
+    import mujoco
+
+    ground = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
+    deepest: dict[tuple[int, int], float] = {}
+    for i in range(d.ncon):
+        c = d.contact[i]
+        g1, g2 = sorted((int(c.geom1), int(c.geom2)))
+        if int(m.geom_type[g1]) in ground or int(m.geom_type[g2]) in ground:
+            continue
+        if m.geom_bodyid[g1] == m.geom_bodyid[g2]:
+            continue
+        depth = -float(c.dist)
+        if depth > deepest.get((g1, g2), -np.inf):
+            deepest[(g1, g2)] = depth
+    deep = {k: v for k, v in deepest.items() if v > penetration}
+    owner = geom_links(ref, m, sorted({g for pair in deep for g in pair}))
+    links = {link.name: link for link in ref.urdf.robot.links}
+    frames: dict[str, np.ndarray] | None = None
+    placed: dict[str, Any] = {}
+    pairs: list[dict[str, Any]] = []
+    failures: list[str] = []
+    for (g1, g2), depth in sorted(deep.items(), key=lambda kv: -kv[1]):
+        l1, l2 = owner.get(g1, ""), owner.get(g2, "")
+        src_depth: float | None = None
+        if l1 in links and l2 in links and l1 != l2:
+            if frames is None:
+                frames = ref.frames(home_cfg(ref, m, d))
+            for name in (l1, l2):
+                if name not in placed:
+                    placed[name] = _Placed.of(ref, links[name], frames[name])
+            try:
+                src_depth = source_overlap(placed[l1], placed[l2])
+            except Exception:  # a mesh trimesh cannot test: not compared, said so
+                log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
+        by = "description" if src_depth is not None and src_depth > penetration else "conversion"
+        labels = [_geom_label(m, g1), _geom_label(m, g2)]
+        pair: dict[str, Any] = {
+            "geoms": labels,
+            "links": [l1 or None, l2 or None],
+            "depth_m": round(depth, 6),
+            "source_depth_m": None if src_depth is None else round(src_depth, 6),
+            "by": by,
+        }
+        pairs.append(pair)
+        if by == "conversion":
+            failures.append(
+                f"interpenetration {labels[0]} / {labels[1]}: {depth * 1e3:.1f} mm "
+                f"deep at home, added by the conversion (the description's shapes: "
+                + (f"{src_depth * 1e3:.1f} mm)" if src_depth is not None else "not compared)")
+            )
+    added = sum(p["by"] == "conversion" for p in pairs)
+    if not pairs:
+        detail = f"no colliding pair deeper than {penetration * 1e3:g} mm at home"
+    else:
+        detail = (
+            f"{len(pairs)} pairs deeper than {penetration * 1e3:g} mm at home: "
+            f"{added} added by the conversion, {len(pairs) - added} in the description"
+        )
+    worst = max(deepest.values(), default=0.0)
+    return _check(not added, detail, pairs=pairs, max_depth_m=round(max(worst, 0.0), 6)), failures
+
+
+# -- visual geoms ---------------------------------------------------------------
+
+
+def _visual_geoms(m: mujoco.MjModel) -> list[int]:
+    return [g for g in range(m.ngeom) if m.geom_group[g] == 2]
+
+
+def _visual_mass_free(path: Path, m: mujoco.MjModel) -> list[int] | None:
+    """Bodies whose mass or inertia changes when the visual geoms (group 2) weigh
+    nothing; None where that cannot be told. A model whose compiler takes inertia
+    from ``<inertial>`` only (``inertiafromgeom="false"``, as we write) has none;
+    otherwise the file is compiled again with those geoms' mass and density zeroed."""
+    import mujoco
+
+    spec = mujoco.MjSpec.from_file(str(path))
+    if spec.compiler.inertiafromgeom == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE:
+        return []
+    for g in spec.geoms:
+        if g.group == 2:
+            g.mass, g.density = 0.0, 0.0
+    bare = spec.compile()
+    if bare.nbody != m.nbody:
+        return None
+    out = []
+    for b in range(1, m.nbody):
+        dm = abs(float(m.body_mass[b] - bare.body_mass[b]))
+        di = float(np.abs(m.body_inertia[b] - bare.body_inertia[b]).max())
+        if dm > 1e-9 * max(1.0, float(m.body_mass[b])) or di > 1e-12:
+            out.append(b)
+    return out
+
+
+def check_visuals(m: mujoco.MjModel, model_path: Path | None) -> tuple[dict[str, Any], list[str]]:
+    visual = _visual_geoms(m)
+    failures: list[str] = []
+    colliding = [g for g in visual if m.geom_contype[g] or m.geom_conaffinity[g]]
+    for g in colliding:
+        failures.append(f"visual {_geom_label(m, g)}: a visual geom (group 2) collides")
+    heavy: list[str] = []
+    measured = False
+    if model_path is not None and visual:
+        try:
+            bodies = _visual_mass_free(Path(model_path), m)
+        except Exception as exc:  # the file changed or cannot be read again: say so
+            log.info("visual geoms' mass not measured: %s", exc)
+            bodies = None
+        measured = bodies is not None
+        for b in bodies or []:
+            heavy.append(m.body(b).name)
+            failures.append(
+                f"visual {m.body(b).name}: its visual geoms weigh (body mass "
+                f"{float(m.body_mass[b]):.6g} kg with them)"
+            )
+    if failures:
+        detail = f"{len(colliding)} visual geoms collide, {len(heavy)} bodies weighed by visuals"
+    elif not visual:
+        detail = "no visual geom (group 2)"
+    else:
+        detail = f"{len(visual)} visual geoms collide with nothing" + (
+            " and weigh nothing" if measured else " (mass not measured: no model file)"
+        )
+    figures = {
+        "visual_geoms": len(visual),
+        "colliding": len(colliding),
+        "heavy_bodies": heavy,
+        "mass_measured": measured,
+    }
+    return _check(not failures, detail, **figures), failures
+
+
+# -- energy ---------------------------------------------------------------------
+
+
+def check_energy(
+    m: mujoco.MjModel, d_home: mujoco.MjData, growth: float
+) -> tuple[dict[str, Any], list[str]]:
+    import mujoco
+
+    mc = copy.copy(m)
+    mc.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    mc.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    d = home_data(mc, d_home)
+    d.ctrl[:] = 0
+    steps = int(min(MAX_STEPS, np.ceil(1.0 / mc.opt.timestep)))
+    e0 = float(d.energy.sum())
+    mass = float(mc.body_mass[1:].sum())
+    scale = mass * float(np.linalg.norm(mc.opt.gravity)) * float(mc.stat.extent)
+    allowed = growth * scale + ENERGY_FLOOR_J
+    peak, at = e0, 0
+    diverged = False
+    for k in range(steps):
+        mujoco.mj_step(mc, d)
+        if not np.isfinite(d.qacc).all() or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+            diverged = True
+            at = k + 1
+            break
+        e = float(d.energy.sum())
+        if e > peak:
+            peak, at = e, k + 1
+    rise = peak - e0
+    ok = not diverged and rise <= allowed
+    seconds = steps * mc.opt.timestep
+    figures = {
+        "steps": steps,
+        "seconds": round(seconds, 6),
+        "start_j": e0,
+        "max_growth_j": rise,
+        "allowed_j": allowed,
+        "diverged": diverged,
+    }
+    if diverged:
+        detail = f"simulation diverged after {at} steps ({at * mc.opt.timestep:.3g} s)"
+    else:
+        detail = (
+            f"energy rose {rise:.3g} J at most over {seconds:.3g} s passive "
+            f"(allowed {allowed:.3g} J)"
+        )
+    failures = [] if ok else [f"passive_energy: {detail}"]
+    return _check(ok, detail, **figures), failures
+
+
+# -- the section ------------------------------------------------------------------
+
+
+def lint_section(
+    ref: Reference,
+    m: mujoco.MjModel,
+    d_home: mujoco.MjData | None = None,
+    *,
+    inertia_factor: float = INERTIA_FACTOR,
+    penetration_m: float = PENETRATION_M,
+    energy_growth: float = ENERGY_GROWTH,
+    model_path: str | Path | None = None,
+) -> dict[str, Any]:
+    """Every check of the module; ``model_path`` (the file ``m`` was compiled from)
+    lets the visual geoms be weighed."""
+    d = home_data(m, d_home)
+    checks: dict[str, dict[str, Any]] = {}
+    failures: list[str] = []
+    warnings: list[str] = []
+
+    def add(name: str, result: tuple[dict[str, Any], list[str]]) -> None:
+        checks[name] = result[0]
+        failures.extend(result[1])
+
+    # Implausible declared inertia is the description's (UR5's wrists, panda's link1 as
+    # published): said, never a failure of the conversion's certificate
+    inertia, implausible = check_inertia(ref, inertia_factor)
+    inertia["severity"] = "warning"
+    checks["inertia"] = inertia
+    warnings.extend(implausible)
+    add("interpenetration", check_interpenetration(ref, m, d, penetration_m))
+    add("home_in_limits", check_home(ref, m, d))
+    matrix = check_collision_matrix(m, ref)
+    add("collision_matrix", (matrix, [] if matrix["ok"] else [f"collision: {matrix['detail']}"]))
+    add("visual_massless", check_visuals(m, Path(model_path) if model_path else None))
+    energy, energy_failures = check_energy(m, d, energy_growth)
+    pairs = len(checks["interpenetration"]["pairs"])
+    if not energy["ok"] and pairs:  # the likely cause, said where it shows
+        note = f" ({pairs} geom pairs interpenetrate at home)"
+        energy["detail"] += note
+        energy_failures = [f + note for f in energy_failures]
+    # Energy that grows in a passive second is said, not failed: the description's
+    # own dynamics (or an overlap it has) can do it; an overlap the conversion added
+    # already fails the interpenetration check
+    energy["severity"] = "warning"
+    checks["passive_energy"] = energy
+    warnings.extend(energy_failures)
+    return {"checks": checks, "failures": failures, "warnings": warnings}

@@ -1,0 +1,192 @@
+"""``urdf2mjcf verify SOURCE MODEL.xml``: the certificate of any model against any description.
+
+Exit 0 when every figure is within its tolerance, 1 when one is not (each
+failing figure on its own stderr line, then the summary), 2 on bad input (one
+``error:`` line: a description or model that cannot be read, a bad name map or
+tolerance, a model with no body for the description's root link).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..cli import _configure_logging, _pairs
+from ..cli_types import BoundedInt, FiniteFloat, KeyedFloat
+from ..errors import InputError
+from ..untrusted import printable
+from . import SAMPLES
+from .kinematics import NameMap
+
+GENERATOR = "urdf2mjcf verify"
+"""``"generator"`` of the JSON reports this command writes (and replaces)."""
+
+TOLERANCE = KeyedFloat(FiniteFloat(0.0, 1e6), "NAME")
+
+
+def load_name_map(path: Path) -> NameMap:
+    """A YAML file ``{links: {LINK: BODY}, joints: {JOINT: MJCF_JOINT}}`` (both optional)."""
+    import yaml
+
+    from ..untrusted import check_yaml_size, read_file
+
+    raw = read_file(path, "yaml", element="--name-map", what="name map")
+    try:
+        data = yaml.safe_load(raw.decode("utf-8"))
+        check_yaml_size(data)
+    except (yaml.YAMLError, UnicodeDecodeError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"not a YAML name map: {first}", file=path, element="--name-map") from None
+    data = {} if data is None else data
+    if not isinstance(data, dict) or set(data) - {"links", "joints"}:
+        raise InputError(
+            "a name map is a mapping with 'links' and 'joints' (each NAME: MJCF_NAME)",
+            file=path,
+            element="--name-map",
+        )
+    maps: dict[str, dict[str, str]] = {}
+    for key in ("links", "joints"):
+        section = data.get(key) or {}
+        if not isinstance(section, dict) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in section.items()
+        ):
+            raise InputError(
+                f"'{key}' must map names to names (NAME: MJCF_NAME)",
+                file=path,
+                element="--name-map",
+            )
+        maps[key] = section
+    return NameMap(links=maps["links"], joints=maps["joints"])
+
+
+def load_model(path: Path) -> Any:
+    """``mujoco.MjModel`` of the MJCF file at ``path`` (MuJoCo opens what it includes)."""
+    import mujoco
+
+    from ..mjmodel import LOCK
+    from ..untrusted import check_regular
+
+    check_regular(path, "description", what="model")
+    with LOCK:
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(lambda msg: None)  # a warning is not the model's figure
+        try:
+            return mujoco.MjModel.from_xml_path(str(path))
+        except ValueError as exc:
+            message = " ".join(str(exc).split())
+            raise InputError(f"MuJoCo cannot load the model: {message}", file=path) from None
+        finally:
+            mujoco.set_mju_user_warning(previous)
+
+
+@click.command("urdf2mjcf verify", context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="Also write the certificate as JSON (replaces only a report of this command).",
+)
+@click.option(
+    "--tolerance",
+    "tolerances",
+    multiple=True,
+    type=TOLERANCE,
+    metavar="NAME=VALUE",
+    help="Change one tolerance (repeatable; the names: docs/cli.md).",
+)
+@click.option(
+    "--name-map",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="YAML file mapping link names to body names and joint names to MJCF joint names.",
+)
+@click.option(
+    "--samples",
+    type=BoundedInt(0, 10_000),
+    default=SAMPLES,
+    show_default=True,
+    help="Random configurations within the limits, besides home.",
+)
+@click.option(
+    "--package-path",
+    multiple=True,
+    type=click.Path(path_type=Path, file_okay=False),
+    help="Folder whose sub-folders are ROS packages (repeatable).",
+)
+@click.option(
+    "--package", "packages", multiple=True, metavar="NAME=DIR", help="Location of one package."
+)
+@click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
+@click.option(
+    "--trust-xacro", is_flag=True, help="Run the description's code, as ROS's xacro does."
+)
+@click.option("-v", "--verbose", count=True, help="The certificate's table on stderr.")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors and failing figures.")
+def verify_command(
+    source: Path,
+    model: Path,
+    xacro_args: tuple[str, ...],
+    report_path: Path | None,
+    tolerances: tuple[tuple[str, float], ...],
+    name_map: Path | None,
+    samples: int,
+    package_path: tuple[Path, ...],
+    packages: tuple[str, ...],
+    no_ros_env: bool,
+    trust_xacro: bool,
+    verbose: int,
+    quiet: bool,
+) -> None:
+    """Certify the MuJoCo MODEL against the URDF or xacro description SOURCE.
+
+    Compares link frames (home and random configurations), joints, masses and,
+    with pinocchio installed, the mass matrix and gravity torques, collision
+    geometry and lint checks. Exit 0: every figure within its tolerance; 1: one
+    is not (each on stderr); 2: bad input. Bodies are matched by link name.
+    """
+    from .. import api
+    from .. import output as out
+    from ..passes import xacro
+    from . import certify
+    from .reference import load
+    from .tolerances import Tolerances
+
+    _configure_logging(verbose, quiet)
+    tol = Tolerances().with_values(tolerances)
+    names = load_name_map(name_map) if name_map else NameMap()
+    if report_path:
+        if report_path.resolve() in (source.resolve(), model.resolve()):
+            raise click.BadParameter("is an input file", param_hint="--report")
+        out.check_file(report_path, False, GENERATOR)
+    options = api.make_options(
+        args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
+        package_paths=package_path,
+        packages=_pairs(packages, "=", "NAME=DIR"),
+        use_environment=not no_ros_env,
+        trust_xacro=True if trust_xacro else None,
+    )
+    doc = xacro.run(source, options.xacro)
+    ref = load(doc)
+    m = load_model(model)
+    try:
+        certificate = certify(ref, m, tolerances=tol, names=names, samples=samples)
+    except InputError as exc:  # the model is not one of this description
+        raise InputError(exc.detail, file=model) from None
+    if report_path:
+        data = {"source": str(source), "model": str(model), "certificate": certificate.to_dict()}
+        out.write_json(report_path, data, GENERATOR)
+    if verbose:
+        click.echo(printable(certificate.table()), err=True)
+    if certificate.passed:
+        if not quiet:
+            click.echo(printable(certificate.summary()))
+        return
+    for failure in certificate.failures:
+        click.echo(printable(f"failed: {failure}"), err=True)
+    click.echo(printable(certificate.summary()), err=True)
+    sys.exit(1)  # a figure out of tolerance (run_command passes SystemExit through)
