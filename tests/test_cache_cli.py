@@ -27,7 +27,13 @@ URDF = """<robot name="small">
   </link>
 </robot>
 """
-KINDS = {"coacd": ".npz", "hull_gap": ".json", "hulls": ".npz", "meshes": ".bin"}
+KINDS = {
+    "coacd": ".npz",
+    "hull_gap": ".json",
+    "hulls": ".npz",
+    "meshes": ".bin",
+    "certificate": ".json",  # collision figures of certificates
+}
 
 
 def urdf2mjcf_cli(*args: str, cwd: Path, env: dict | None = None) -> subprocess.CompletedProcess:

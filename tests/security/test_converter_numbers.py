@@ -231,9 +231,17 @@ def test_faces_using_a_non_finite_vertex_are_dropped_with_a_warning(
     assert "nan" not in (tmp_path / "out" / "robot.xml").read_text().lower()
 
 
-def test_mesh_with_only_non_finite_faces_is_one_error_naming_it(tmp_path: Path) -> None:
+def test_mesh_with_only_non_finite_faces_is_dropped_naming_it(tmp_path: Path) -> None:
+    """No usable triangle left: the geom is dropped with a warning saying why (as any
+    collision mesh without usable triangles, issue 24), an error with --strict."""
     verts = [(float("nan"), 0, 0), *CUBE_VERTS[1:]]
     faces = [f for f in CUBE_FACES if 1 in f]
     write_obj(tmp_path / "part.obj", verts, faces)
     mesh = '<collision><geometry><mesh filename="part.obj"/></geometry></collision>'
-    assert_bad_number(tmp_path, urdf(link=mesh), "part.obj", "no usable triangles", "NaN")
+    res, made = convert(tmp_path, urdf(link=mesh))
+    assert res.returncode == 0, res.stderr
+    (line,) = [w for w in res.stderr.splitlines() if "part.obj" in w]
+    assert line.startswith("warning:") and "no usable triangles" in line and "NaN" in line
+    assert made
+    res, _ = convert(tmp_path, urdf(link=mesh), "--strict", "--overwrite")
+    assert_one_error(res, "part.obj", "no usable triangles", "NaN")
