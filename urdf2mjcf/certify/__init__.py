@@ -19,7 +19,7 @@ and by ``urdf2mjcf verify`` for any model against any description.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -265,41 +265,30 @@ def certify(
 def _collision(
     ref: Reference, m: Any, tol: Tolerances, cache_root: Path | None
 ) -> tuple[dict[str, Any], list[str]]:
-    try:
-        from .collision import collision_section
-    except ImportError as exc:
-        return {"computed": False, "why": f"not available ({exc})"}, []
-    try:
-        result = collision_section(
+    from .collision import collision_section
+
+    return _section(
+        "collision",
+        lambda: collision_section(
             ref,
             m,
             hausdorff_mm=tol.collision_hausdorff_mm,
             hausdorff_rel=tol.collision_hausdorff_rel,
             volume_ratio=(tol.collision_volume_ratio_min, tol.collision_volume_ratio_max),
             cache_root=cache_root,
-        )
-    except ConversionError:
-        raise
-    except Exception as exc:  # a bug there must not hide the other figures
-        log.warning("certificate: collision figures failed: %s", exc, exc_info=True)
-        return {"computed": False, "why": f"internal error: {type(exc).__name__}: {exc}"}, []
-    failures = [
-        f"collision.{f}" if not f.startswith("collision") else f for f in result.get("failures", [])
-    ]
-    return {k: v for k, v in result.items() if k != "failures"}, failures
+        ),
+    )
 
 
 def _checks(
     ref: Reference, m: Any, tol: Tolerances, model_path: Path | None
 ) -> tuple[dict[str, Any], list[str]]:
-    try:
-        from .checks import lint_section
-    except ImportError as exc:
-        return {"computed": False, "why": f"not available ({exc})"}, []
     from ..mjmodel import home_data
+    from .checks import lint_section
 
-    try:
-        result = lint_section(
+    return _section(
+        "checks",
+        lambda: lint_section(
             ref,
             m,
             home_data(m),
@@ -307,15 +296,23 @@ def _checks(
             penetration_m=tol.penetration_m,
             energy_growth=tol.energy_growth,
             model_path=model_path,
-        )
+        ),
+    )
+
+
+def _section(
+    name: str, compute: Callable[[], dict[str, Any]]
+) -> tuple[dict[str, Any], list[str]]:
+    """A section's figures and its failures, each prefixed with ``name``; a bug in it
+    must not hide the other figures (bad input, a ConversionError, still stops)."""
+    try:
+        result = compute()
     except ConversionError:
         raise
-    except Exception as exc:  # a bug there must not hide the other figures
-        log.warning("certificate: lint checks failed: %s", exc, exc_info=True)
+    except Exception as exc:
+        log.warning("certificate: %s section failed: %s", name, exc, exc_info=True)
         return {"computed": False, "why": f"internal error: {type(exc).__name__}: {exc}"}, []
-    failures = [
-        f"checks.{f}" if not f.startswith("checks") else f for f in result.get("failures", [])
-    ]
+    failures = [f if f.startswith(name) else f"{name}.{f}" for f in result.get("failures", [])]
     return {k: v for k, v in result.items() if k != "failures"}, failures
 
 

@@ -700,7 +700,6 @@ def collision_section(
             by_link.setdefault(owner[g], []).append(g)
     links: dict[str, dict[str, Any]] = {}
     failures: list[str] = []
-    lo, hi = volume_ratio
     for link in ref.urdf.robot.links:
         name = link.name
         mine = by_link.get(name, [])
