@@ -32,7 +32,7 @@ KINDS = {
     "hull_gap": ".json",
     "hulls": ".npz",
     "meshes": ".bin",
-    "certificate": ".json",  # collision figures of certificates
+    "certificate": ".json",  # geometric figures of certificates
 }
 
 

@@ -209,14 +209,18 @@ def convert(
 
     def run_validation(staged: Path) -> None:
         staged_target = staged.with_name(check.name)
-        validated.append(
-            validate.run(staged_target, options.validate, report_as=check, files=list(files))
-        )
         cfg = options.certify
-        if cfg.enforce or (cfg.enabled and options.validate.enabled):
+        wanted = cfg.enforce or (cfg.enabled and options.validate.enabled)
+        # the certificate's passive second is stepped by validation, beside its own
+        checks = replace(options.validate, passive_second=wanted)
+        validated.append(validate.run(staged_target, checks, report_as=check, files=list(files)))
+        if wanted:
             # the staged files, before they are installed: --verify can still refuse them
-            compiled = validated[0].model if validated[0] is not None else None
-            certificates.append(_certificate(doc, model, staged, list(files), cfg, compiled))
+            v = validated[0]
+            compiled, passive = (v.model, v.passive) if v is not None else (None, None)
+            certificates.append(
+                _certificate(doc, model, staged, list(files), cfg, compiled, passive)
+            )
             if cfg.enforce and not certificates[0].passed:
                 raise CertificateFailed(certificates[0], file=output)
 
@@ -247,12 +251,15 @@ def _certificate(
     files: list[str],
     cfg: CertifyConfig,
     compiled: Any = None,
+    passive: mjmodel.PassiveRun | None = None,
 ) -> Certificate:
     """The certificate of the staged robot file against the description ``doc``.
 
     ``compiled``: what validation compiled from the staged files (``scene.xml``, which
     includes the robot file, or the robot file itself), reused: a second compile of
     the robot costs a third of a warm conversion. None: the robot file is compiled.
+    ``passive``: the passive second validation stepped beside its own (None: the
+    certificate steps it).
 
     A description the reference cannot read, or a model it cannot match, gives a
     certificate that is not computed (and so not passed) rather than a failed
@@ -275,6 +282,7 @@ def _certificate(
             seed=cfg.seed,
             cache_root=cfg.cache_root,
             model_path=staged,
+            passive=passive,
         )
     except ConversionError as exc:
         log.info("certificate not computed: %s", exc)

@@ -66,7 +66,7 @@ KINDS = {
     "hull_gap": "hull gaps",
     "hulls": "convex hulls",
     "meshes": "loaded meshes",
-    "certificate": "collision figures of certificates",
+    "certificate": "geometric figures of certificates",
 }
 """Every sub-folder we write, with what it holds; ``clear`` touches nothing else."""
 

@@ -22,12 +22,46 @@ from __future__ import annotations
 
 import re
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Future
+from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
 LOCK = threading.RLock()
 """MuJoCo's user warning callback is process-global: whoever sets it holds this
 (re-entrant: validation holds it while it compiles and steps)."""
+
+
+_route = threading.local()
+"""Per thread: where MuJoCo's warnings go instead (the passive second's thread)."""
+
+
+def warning_handler(sink: list[str]) -> Callable[[str], None]:
+    """A MuJoCo warning handler that appends to ``sink``, except in a thread that
+    routes its warnings elsewhere: MuJoCo's handler is process-wide, and a
+    passive second stepping in the background must not warn into a compile."""
+
+    def handle(msg: str) -> None:
+        routed: list[str] | None = getattr(_route, "sink", None)
+        (sink if routed is None else routed).append(str(msg).strip())
+
+    return handle
+
+
+@contextmanager
+def warnings_into(sink: list[str]) -> Iterator[None]:
+    """MuJoCo's warnings appended to ``sink`` meanwhile (:func:`warning_handler`),
+    :data:`LOCK` held; the handler before is restored after."""
+    import mujoco
+
+    with LOCK:
+        previous = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(warning_handler(sink))
+        try:
+            yield
+        finally:
+            mujoco.set_mju_user_warning(previous)
 
 
 def compile_xml(
@@ -44,7 +78,7 @@ def compile_xml(
     sink = warnings if warnings is not None else []
     with LOCK:
         previous = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(lambda msg: sink.append(str(msg).strip()))
+        mujoco.set_mju_user_warning(warning_handler(sink))
         try:
             return mujoco.MjModel.from_xml_string(text, dict(files))
         finally:
@@ -206,3 +240,115 @@ def shape(xml: bytes | str) -> bytes:
     for key in root.iter("key"):
         key.attrib.pop("ctrl", None)
     return etree.tostring(root)
+
+
+MAX_PASSIVE_STEPS = 2000
+"""Most steps of :func:`passive_second`, whatever the model's timestep."""
+PASSIVE_CHUNK = 10
+"""Steps between two readings of the energy (20 ms at MuJoCo's default timestep): each
+reading needs the GIL, which a busy thread beside holds for up to 5 ms at a time."""
+
+
+@dataclass(frozen=True)
+class PassiveRun:
+    """One second from home with actuation and sensors off and MuJoCo's energy on:
+    what the certificate's passive-energy check judges."""
+
+    steps: int
+    timestep: float
+    start_j: float
+    """Kinetic plus potential energy at home."""
+    peak_j: float
+    """The most it reached (at least ``start_j``), read every :data:`PASSIVE_CHUNK` steps."""
+    peak_step: int
+    diverged_at: int | None
+    """The chunk's last step where the state stopped being finite (MuJoCo's bad
+    position, velocity or acceleration warnings, or a fatal error)."""
+
+
+def passive_second(m: Any, start: Any) -> PassiveRun:
+    """Step ``m`` passively for a second (at most :data:`MAX_PASSIVE_STEPS` steps) from
+    the state of the ``mujoco.MjData`` ``start`` (left alone). ``m``'s flags are
+    changed while it steps and restored after; what MuJoCo warns meanwhile is
+    dropped (a divergence is in the figures)."""
+    import math
+
+    import mujoco
+    import numpy as np
+
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:] = start.qpos, start.qvel
+    if m.na:
+        d.act[:] = start.act
+    d.mocap_pos[:], d.mocap_quat[:] = start.mocap_pos, start.mocap_quat
+    flags = (m.opt.enableflags, m.opt.disableflags)
+    m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+    # Sensors read the state and never change it: a lidar's rays would cost thirty
+    # times the physics
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION) | int(
+        mujoco.mjtDisableBit.mjDSBL_SENSOR
+    )
+    ts = float(m.opt.timestep)
+    steps = MAX_PASSIVE_STEPS if not ts > 0 else int(min(MAX_PASSIVE_STEPS, math.ceil(1.0 / ts)))
+    diverged: int | None = None
+    _route.sink = []
+    try:
+        mujoco.mj_forward(m, d)
+        start_j = peak = float(d.energy.sum())
+        at = 0
+        bad = [
+            mujoco.mjtWarning.mjWARN_BADQACC,
+            mujoco.mjtWarning.mjWARN_BADQVEL,
+            mujoco.mjtWarning.mjWARN_BADQPOS,
+        ]
+        done = 0
+        while done < steps:
+            # MuJoCo steps a chunk without the GIL; the energy is read between chunks
+            chunk = min(PASSIVE_CHUNK, steps - done)
+            try:
+                mujoco.mj_step(m, d, nstep=chunk)
+            except mujoco.FatalError:
+                diverged = done + chunk
+                break
+            done += chunk
+            if not np.isfinite(d.qacc).all() or any(d.warning[w].number for w in bad):
+                diverged = done
+                break
+            e = float(d.energy.sum())
+            if e > peak:
+                peak, at = e, done
+    finally:
+        m.opt.enableflags, m.opt.disableflags = flags
+        _route.sink = None
+    return PassiveRun(steps, float(m.opt.timestep), start_j, peak, at, diverged)
+
+
+def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:
+    """:func:`passive_second` of ``m`` in a thread of its own: MuJoCo releases the GIL
+    while it steps, so it costs no time beside Python work (the certificate's
+    other figures). ``m`` is the thread's until the result is in (its flags change)."""
+    future: Future[PassiveRun] = Future()
+    d = _data_copy(start)
+
+    def work() -> None:
+        try:
+            future.set_result(passive_second(m, d))
+        except BaseException as exc:  # handed to whoever waits for the result
+            future.set_exception(exc)
+
+    threading.Thread(target=work, name="urdf2mjcf-passive", daemon=True).start()
+    return future
+
+
+def _data_copy(d: Any) -> Any:
+    """The state :func:`passive_second` starts from, read now (the caller's data may
+    change while the thread starts)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        qpos=d.qpos.copy(),
+        qvel=d.qvel.copy(),
+        act=d.act.copy(),
+        mocap_pos=d.mocap_pos.copy(),
+        mocap_quat=d.mocap_quat.copy(),
+    )

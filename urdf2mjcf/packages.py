@@ -364,7 +364,7 @@ class PackageResolver:
         relative to ``base`` (default: the source file's folder). A file under
         a known package need not exist; one found by a fallback does.
         """
-        base = base or self.source.resolve().parent
+        base = base or self._ancestors[0]  # the source's folder, resolved once
         key = ("uri", uri, base)
         if key not in self._memo:
             path = self._resolve(uri, element, base)

@@ -21,7 +21,7 @@ from tests.corpus import (
     wild_collections,
 )
 from urdf2mjcf import api
-from urdf2mjcf.certify import CertificateFailed, certify
+from urdf2mjcf.certify import SAMPLES, CertificateFailed, certify
 from urdf2mjcf.certify.reference import load
 from urdf2mjcf.certify.tolerances import Tolerances, markdown_table
 from urdf2mjcf.passes import xacro
@@ -158,7 +158,7 @@ def test_certificate_of_a_conversion_agrees_with_pinocchio(
     assert data["reference"]["implementation"] == "yourdfpy"
     assert data["frames"]["max_position_error_m"] < 1e-12
     assert data["frames"]["max_rotation_error_rad"] < 1e-12
-    assert data["frames"]["configurations"] == 17
+    assert data["frames"]["configurations"] == 1 + SAMPLES
 
     # Independently: pinocchio reads the description (our repairs and estimates patched
     # in, as the certificate says it takes them) and MuJoCo the written files.
@@ -301,3 +301,8 @@ def test_tolerances_are_checked_and_documented():
     assert Tolerances().with_values([("com_m", 0.5)]).com_m == 0.5
     doc = (ROOT / "docs" / "cli.md").read_text()
     assert markdown_table() in doc, "docs/cli.md: paste tolerances.markdown_table()"
+    from urdf2mjcf.certify import DYNAMICS_SAMPLES
+
+    flat = " ".join(doc.split())
+    assert f"at {SAMPLES} random configurations (`--samples`)" in flat
+    assert f"at home and {DYNAMICS_SAMPLES} random configurations" in flat

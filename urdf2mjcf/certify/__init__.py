@@ -20,19 +20,21 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable, Mapping
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..errors import ConversionError
 from ..ir import Model, Note
+from ..mjmodel import PassiveRun
 from .kinematics import NameMap
 from .reference import Reference
 from .tolerances import Tolerances
 
 log = logging.getLogger(__name__)
 
-SAMPLES = 16
+SAMPLES = 8
 """Random configurations besides home (the certificate's cost is linear in them)."""
 DYNAMICS_SAMPLES = 3
 """Random configurations (besides home) for the mass matrix and gravity torques."""
@@ -201,18 +203,65 @@ def certify(
     seed: int = 0,
     cache_root: Path | None = None,
     model_path: Path | None = None,
+    passive: PassiveRun | None = None,
 ) -> Certificate:
     """The certificate of the compiled model ``m`` against the description ``ref``.
 
-    ``cache_root``: where collision figures are kept by content (a warm conversion
-    measures nothing again); ``model_path``: the MJCF file ``m`` was compiled from
-    (lets the visual geoms be weighed).
+    ``cache_root``: where the geometric figures (collision, the geometry's inertia,
+    source overlaps) are kept by content (a warm conversion measures none again);
+    ``model_path``: the MJCF file ``m`` was compiled from (lets the visual geoms be
+    weighed); ``passive``: the passive second of ``m``, stepped already (validation
+    does, beside its own); None: it steps on a copy of ``m`` in a thread of its own
+    while the other figures are computed.
 
     ``model`` (and its ``notes``): our conversion's intermediate representation,
     which says which inertials it supplied and why; without it (a model we did not
     write) the links whose inertial a model may supply are found by rule. Raises an
     InputError when the model has no body for the description's root link.
     """
+    import copy
+
+    from ..mjmodel import home_data, start_passive_second, warnings_into
+
+    # MuJoCo's warnings are not figures: kept from its default handler (a log file)
+    with warnings_into([]):
+        stepping: Future[PassiveRun]
+        if passive is None:
+            stepping = start_passive_second(copy.copy(m), home_data(m))
+        else:
+            stepping = Future()
+            stepping.set_result(passive)
+        try:
+            return _certify(
+                ref,
+                m,
+                tolerances,
+                names,
+                model,
+                notes,
+                samples,
+                seed,
+                cache_root,
+                model_path,
+                stepping,
+            )
+        finally:
+            stepping.exception()  # the thread is done before the handler is restored
+
+
+def _certify(
+    ref: Reference,
+    m: Any,
+    tolerances: Tolerances | None,
+    names: NameMap | None,
+    model: Model | None,
+    notes: Iterable[Note],
+    samples: int,
+    seed: int,
+    cache_root: Path | None,
+    model_path: Path | None,
+    passive: Future[PassiveRun],
+) -> Certificate:
     from . import changes as changes_mod
     from . import dynamics, kinematics, mass
 
@@ -236,7 +285,7 @@ def certify(
         mt, configs[: 1 + DYNAMICS_SAMPLES], amended, tol.dynamics_relative
     )
     collision, collision_failures = _collision(ref, m, tol, cache_root)
-    checks, check_failures = _checks(ref, m, tol, model_path)
+    checks, check_failures = _checks(ref, m, tol, model_path, cache_root, passive)
     listed = changes_mod.from_notes(notes)
     seen = {c["element"] for c in listed}
     extra = joint_changes + mass_changes + changes_mod.massless_with_inertia(ref)
@@ -281,7 +330,12 @@ def _collision(
 
 
 def _checks(
-    ref: Reference, m: Any, tol: Tolerances, model_path: Path | None
+    ref: Reference,
+    m: Any,
+    tol: Tolerances,
+    model_path: Path | None,
+    cache_root: Path | None,
+    passive: Future[PassiveRun],
 ) -> tuple[dict[str, Any], list[str]]:
     from ..mjmodel import home_data
     from .checks import lint_section
@@ -296,13 +350,13 @@ def _checks(
             penetration_m=tol.penetration_m,
             energy_growth=tol.energy_growth,
             model_path=model_path,
+            cache_root=cache_root,
+            passive=passive,
         ),
     )
 
 
-def _section(
-    name: str, compute: Callable[[], dict[str, Any]]
-) -> tuple[dict[str, Any], list[str]]:
+def _section(name: str, compute: Callable[[], dict[str, Any]]) -> tuple[dict[str, Any], list[str]]:
     """A section's figures and its failures, each prefixed with ``name``; a bug in it
     must not hide the other figures (bad input, a ConversionError, still stops)."""
     try:

@@ -33,7 +33,7 @@ the inertia and passive-energy checks: what they flag can be the description's o
     (measured when ``model_path`` is given).
 ``passive_energy``
     From home, actuation disabled, one second of simulation (at most
-    ``MAX_STEPS`` steps) with MuJoCo's energy enabled: kinetic plus potential
+    ``mjmodel.MAX_PASSIVE_STEPS`` steps) with MuJoCo's energy enabled: kinetic plus potential
     energy never exceeds its start by more than ``energy_growth`` of the
     robot's energy scale (total mass x gravity x model extent) plus 1 mJ.
     Gravity, damping and contacts only take energy away.
@@ -43,12 +43,14 @@ from __future__ import annotations
 
 import copy
 import logging
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import stored
 from .collision import (
     SEED,
     Primitive,
@@ -58,6 +60,7 @@ from .collision import (
     _sample_union,
     colliding_geoms,
     geom_links,
+    source_elements,
     source_shape,
 )
 
@@ -65,6 +68,7 @@ if TYPE_CHECKING:
     import mujoco
     import trimesh
 
+    from ..mjmodel import PassiveRun
     from .reference import Reference
 
 log = logging.getLogger(__name__)
@@ -76,7 +80,6 @@ and a hull bridging a joint's clearance reaches a few millimetres on real arms."
 ENERGY_GROWTH = 0.01
 """Allowed growth over a passive second, as a fraction of mass x gravity x extent."""
 ENERGY_FLOOR_J = 1e-3
-MAX_STEPS = 2000
 AXIS_SEPARATION = 4.0
 """Principal moments at least this far apart make an axis "clearly" the smallest or
 the largest; the declared moment about it must be this far off to call the axes
@@ -122,7 +125,68 @@ def _inertia_of(mesh: trimesh.Trimesh, mass: float) -> np.ndarray:
     return np.asarray(props["inertia"]) * (mass / props["mass"])
 
 
-def inertia_link(link: Any, ref: Reference, factor: float) -> dict[str, Any] | str:
+INERTIA_FORMAT = 1
+"""Bumped whenever what :func:`geometry_inertia` stores changes."""
+NO_VOLUME = "no geometry with a volume"
+_SHAPES = tuple(s + h for s in ("collision", "visual") for h in ("", " (convex hull)"))
+"""What a link's inertia is measured on (an entry naming anything else is a miss)."""
+
+
+def _geometry_inertia(ref: Reference, link: Any) -> tuple[str, np.ndarray] | str:
+    """(which shape, the inertia tensor per kilogram about its centre of mass in link
+    axes) of the link's geometry filled uniformly, or why there is none."""
+    src = source_shape(ref, link)
+    shape = "collision"
+    if src.empty:
+        src, shape = source_shape(ref, link, "visuals"), "visual"
+    solid, hulled = _solid(src) if not src.empty else (None, False)
+    if solid is None:
+        return NO_VOLUME
+    per_kg = _inertia_of(solid, 1.0)
+    if np.linalg.eigvalsh(per_kg)[0] <= 0:
+        return NO_VOLUME
+    return shape + (" (convex hull)" if hulled else ""), per_kg
+
+
+def geometry_inertia(
+    ref: Reference, link: Any, cache_root: Path | None = None
+) -> tuple[str, np.ndarray] | str:
+    """:func:`_geometry_inertia`, kept by content under ``cache_root`` (the source
+    elements, mesh files by content: a warm conversion loads no mesh for it)."""
+    key = None
+    if cache_root is not None:
+        # a link with collision elements is measured on them (its visuals only when
+        # none of them loads: then nothing is kept, so no visual file is missed)
+        which = "collisions" if link.collisions else "visuals"
+        elements = source_elements(ref, getattr(link, which))
+        if elements is not None:
+            key = stored.key(
+                {"kind": "certificate-inertia", "format": INERTIA_FORMAT, which: elements}
+            )
+            kept = stored.load(cache_root, key)
+            if kept == NO_VOLUME:
+                return NO_VOLUME
+            if (
+                isinstance(kept, list)
+                and len(kept) == 2
+                and kept[0] in _SHAPES
+                and isinstance(kept[1], list)
+                and len(kept[1]) == 9
+                and all(stored.is_number(x) for x in kept[1])
+            ):
+                return str(kept[0]), np.array(kept[1], float).reshape(3, 3)
+    result = _geometry_inertia(ref, link)
+    if key is not None and cache_root is not None:
+        fell_back = link.collisions and not isinstance(result, str) and "visual" in result[0]
+        if not fell_back:
+            value = result if isinstance(result, str) else [result[0], result[1].ravel().tolist()]
+            stored.store(cache_root, key, value)
+    return result
+
+
+def inertia_link(
+    link: Any, ref: Reference, factor: float, cache_root: Path | None = None
+) -> dict[str, Any] | str:
     """The inertia comparison of one link, or why there is none."""
     inertial = link.inertial
     if inertial is None:
@@ -134,17 +198,11 @@ def inertia_link(link: Any, ref: Reference, factor: float) -> dict[str, Any] | s
     dec = np.sort(np.linalg.eigvalsh(declared))
     if dec[0] <= 1e-12 * max(dec[2], 1e-300) or dec[0] + dec[1] < dec[2] * (1 - 1e-6):
         return "declared inertia not physical: the conversion repaired it"
-    src = source_shape(ref, link)
-    shape = "collision"
-    if src.empty:
-        src, shape = source_shape(ref, link, "visuals"), "visual"
-    solid, hulled = _solid(src) if not src.empty else (None, False)
-    if solid is None:
-        return "no geometry with a volume"
-    geometric = _inertia_of(solid, float(inertial.mass))
-    lam, axes = np.linalg.eigh(geometric)
-    if lam[0] <= 0:
-        return "no geometry with a volume"
+    measured = geometry_inertia(ref, link, cache_root)
+    if isinstance(measured, str):
+        return measured
+    shape, per_kg = measured
+    lam, axes = np.linalg.eigh(per_kg * float(inertial.mass))
     ratios = dec / lam
     off = float(max(ratios.max(), 1 / ratios.min()))
     # Swapped axes: where the geometry clearly has its smallest (largest) moment, the
@@ -156,7 +214,7 @@ def inertia_link(link: Any, ref: Reference, factor: float) -> dict[str, Any] | s
         or (lam[2] / lam[1] >= sep and dec[2] / along[2] >= sep)
     )
     return {
-        "shape": shape + (" (convex hull)" if hulled else ""),
+        "shape": shape,
         "declared": [float(x) for x in dec],
         "geometry": [float(x) for x in lam],
         "factor": round(off, 3),
@@ -165,13 +223,15 @@ def inertia_link(link: Any, ref: Reference, factor: float) -> dict[str, Any] | s
     }
 
 
-def check_inertia(ref: Reference, factor: float) -> tuple[dict[str, Any], list[str]]:
+def check_inertia(
+    ref: Reference, factor: float, cache_root: Path | None = None
+) -> tuple[dict[str, Any], list[str]]:
     links: dict[str, dict[str, Any]] = {}
     skipped: dict[str, str] = {}
     failures: list[str] = []
     for link in ref.urdf.robot.links:
         try:
-            entry = inertia_link(link, ref, factor)
+            entry = inertia_link(link, ref, factor, cache_root)
         except Exception as exc:  # a degenerate mesh: said, not fatal
             skipped[link.name] = f"not measured: {' '.join(str(exc).split())[:100]}"
             continue
@@ -373,8 +433,25 @@ def source_overlap(a: _Placed, b: _Placed, samples: int = OVERLAP_SAMPLES) -> fl
     return max(b.depth(a.sample(samples, rng)), a.depth(b.sample(samples, rng)))
 
 
+def _overlap_key(ref: Reference, links: tuple[Any, Any], poses: tuple[Any, Any]) -> str | None:
+    """The cache key of :func:`source_overlap` of two links' source shapes at these
+    poses (None when a mesh file cannot be read)."""
+    parts = []
+    for link, pose in zip(links, poses, strict=True):
+        elements = source_elements(ref, link.collisions)
+        if elements is None:
+            return None
+        parts.append([elements, np.asarray(pose, float).round(12).tolist()])
+    payload = {"kind": "certificate-overlap", "format": 1, "samples": OVERLAP_SAMPLES, "seed": SEED}
+    return stored.key({**payload, "links": parts})
+
+
 def check_interpenetration(
-    ref: Reference, m: mujoco.MjModel, d: mujoco.MjData, penetration: float
+    ref: Reference,
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    penetration: float,
+    cache_root: Path | None = None,
 ) -> tuple[dict[str, Any], list[str]]:
     import mujoco
 
@@ -403,13 +480,20 @@ def check_interpenetration(
         if l1 in links and l2 in links and l1 != l2:
             if frames is None:
                 frames = ref.frames(home_cfg(ref, m, d))
-            for name in (l1, l2):
-                if name not in placed:
-                    placed[name] = _Placed.of(ref, links[name], frames[name])
-            try:
-                src_depth = source_overlap(placed[l1], placed[l2])
-            except Exception:  # a mesh trimesh cannot test: not compared, said so
-                log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
+            key = _overlap_key(ref, (links[l1], links[l2]), (frames[l1], frames[l2]))
+            kept = stored.load(cache_root, key) if cache_root and key else None
+            if kept is not None and stored.is_number(kept, low=0.0):
+                src_depth = float(kept)
+            else:
+                for name in (l1, l2):
+                    if name not in placed:
+                        placed[name] = _Placed.of(ref, links[name], frames[name])
+                try:
+                    src_depth = source_overlap(placed[l1], placed[l2])
+                except Exception:  # a mesh trimesh cannot test: not compared, said so
+                    log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
+                if cache_root and key and src_depth is not None:
+                    stored.store(cache_root, key, src_depth)
         by = "description" if src_depth is not None and src_depth > penetration else "conversion"
         labels = [_geom_label(m, g1), _geom_label(m, g2)]
         pair: dict[str, Any] = {
@@ -512,44 +596,33 @@ def check_visuals(m: mujoco.MjModel, model_path: Path | None) -> tuple[dict[str,
 
 
 def check_energy(
-    m: mujoco.MjModel, d_home: mujoco.MjData, growth: float
+    m: mujoco.MjModel, d_home: mujoco.MjData, growth: float, run: PassiveRun | None = None
 ) -> tuple[dict[str, Any], list[str]]:
-    import mujoco
+    """``run``: the passive second from the same home, stepped elsewhere (on a model
+    of the same robot); None: stepped here."""
+    from ..mjmodel import passive_second, warnings_into
 
-    mc = copy.copy(m)
-    mc.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    mc.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
-    d = home_data(mc, d_home)
-    d.ctrl[:] = 0
-    steps = int(min(MAX_STEPS, np.ceil(1.0 / mc.opt.timestep)))
-    e0 = float(d.energy.sum())
-    mass = float(mc.body_mass[1:].sum())
-    scale = mass * float(np.linalg.norm(mc.opt.gravity)) * float(mc.stat.extent)
+    if run is None:
+        with warnings_into([]):  # a divergence is in the figures
+            run = passive_second(copy.copy(m), d_home)
+    mass = float(m.body_mass[1:].sum())
+    scale = mass * float(np.linalg.norm(m.opt.gravity)) * float(m.stat.extent)
     allowed = growth * scale + ENERGY_FLOOR_J
-    peak, at = e0, 0
-    diverged = False
-    for k in range(steps):
-        mujoco.mj_step(mc, d)
-        if not np.isfinite(d.qacc).all() or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
-            diverged = True
-            at = k + 1
-            break
-        e = float(d.energy.sum())
-        if e > peak:
-            peak, at = e, k + 1
-    rise = peak - e0
+    rise = run.peak_j - run.start_j
+    diverged = run.diverged_at is not None
     ok = not diverged and rise <= allowed
-    seconds = steps * mc.opt.timestep
+    seconds = run.steps * run.timestep
     figures = {
-        "steps": steps,
+        "steps": run.steps,
         "seconds": round(seconds, 6),
-        "start_j": e0,
+        "start_j": run.start_j,
         "max_growth_j": rise,
         "allowed_j": allowed,
         "diverged": diverged,
     }
-    if diverged:
-        detail = f"simulation diverged after {at} steps ({at * mc.opt.timestep:.3g} s)"
+    if run.diverged_at is not None:
+        at = run.diverged_at
+        detail = f"simulation diverged after {at} steps ({at * run.timestep:.3g} s)"
     else:
         detail = (
             f"energy rose {rise:.3g} J at most over {seconds:.3g} s passive "
@@ -571,9 +644,13 @@ def lint_section(
     penetration_m: float = PENETRATION_M,
     energy_growth: float = ENERGY_GROWTH,
     model_path: str | Path | None = None,
+    cache_root: Path | None = None,
+    passive: Future[PassiveRun] | None = None,
 ) -> dict[str, Any]:
     """Every check of the module; ``model_path`` (the file ``m`` was compiled from)
-    lets the visual geoms be weighed."""
+    lets the visual geoms be weighed; ``cache_root`` keeps the geometric figures
+    (inertia of the geometry, overlap of source shapes) by content; ``passive``: the
+    passive second validation already stepped (:func:`check_energy`)."""
     d = home_data(m, d_home)
     checks: dict[str, dict[str, Any]] = {}
     failures: list[str] = []
@@ -585,16 +662,18 @@ def lint_section(
 
     # Implausible declared inertia is the description's (UR5's wrists, panda's link1 as
     # published): said, never a failure of the conversion's certificate
-    inertia, implausible = check_inertia(ref, inertia_factor)
+    inertia, implausible = check_inertia(ref, inertia_factor, cache_root)
     inertia["severity"] = "warning"
     checks["inertia"] = inertia
     warnings.extend(implausible)
-    add("interpenetration", check_interpenetration(ref, m, d, penetration_m))
+    add("interpenetration", check_interpenetration(ref, m, d, penetration_m, cache_root))
     add("home_in_limits", check_home(ref, m, d))
     matrix = check_collision_matrix(m, ref)
     add("collision_matrix", (matrix, [] if matrix["ok"] else [f"collision: {matrix['detail']}"]))
     add("visual_massless", check_visuals(m, Path(model_path) if model_path else None))
-    energy, energy_failures = check_energy(m, d, energy_growth)
+    energy, energy_failures = check_energy(
+        m, d, energy_growth, passive.result() if passive is not None else None
+    )
     pairs = len(checks["interpenetration"]["pairs"])
     if not energy["ok"] and pairs:  # the likely cause, said where it shows
         note = f" ({pairs} geom pairs interpenetrate at home)"

@@ -49,12 +49,15 @@ from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from . import stored
 
 if TYPE_CHECKING:
     import mujoco
@@ -452,10 +455,10 @@ def _zero_frames(ref: Reference) -> dict[str, np.ndarray]:
     return cached
 
 
-def model_shapes(
+def _placed_geoms(
     ref: Reference, m: mujoco.MjModel, link: str, geoms: list[int]
-) -> list[Primitive | Hull]:
-    """The geoms, in ``link``'s frame, as MuJoCo collides with them."""
+) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Each geom as (kind, vertices in ``link``'s frame or size, pose in it)."""
     import mujoco
 
     kinds = {
@@ -465,7 +468,7 @@ def model_shapes(
         mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
         mujoco.mjtGeom.mjGEOM_BOX: "box",
     }
-    out: list[Primitive | Hull] = []
+    out: list[tuple[str, np.ndarray, np.ndarray]] = []
     for g in geoms:
         pose = body_from_link(ref, m, link, int(m.geom_bodyid[g])) @ geom_pose(m, g)
         t = int(m.geom_type[g])
@@ -473,14 +476,39 @@ def model_shapes(
             mid = int(m.geom_dataid[g])
             adr, num = int(m.mesh_vertadr[mid]), int(m.mesh_vertnum[mid])
             v = np.asarray(m.mesh_vert[adr : adr + num], float)
-            try:
-                out.append(Hull(v @ pose[:3, :3].T + pose[:3, 3]))
-            except Exception as exc:  # qhull: a flat or degenerate mesh
-                raise ValueError(f"geom {m.geom(g).name or g}: no convex hull ({exc})") from None
+            out.append(("hull", v @ pose[:3, :3].T + pose[:3, 3], pose))
         elif t in kinds:
-            out.append(Primitive(kinds[t], np.array(m.geom_size[g], float), pose))
+            out.append((kinds[t], np.array(m.geom_size[g], float), pose))
         else:  # an SDF or height field: no shape we can measure
             raise ValueError(f"geom {m.geom(g).name or g} has type {mujoco.mjtGeom(t).name}")
+    return out
+
+
+def model_signature(ref: Reference, m: mujoco.MjModel, link: str, geoms: list[int]) -> list[Any]:
+    """What :func:`model_shapes` builds from, as a cache key's part (no hull computed)."""
+    import hashlib
+
+    return [
+        [kind, hashlib.sha256(data.round(12).tobytes()).hexdigest()]
+        if kind == "hull"
+        else [kind, data.tolist(), pose.round(12).tolist()]
+        for kind, data, pose in _placed_geoms(ref, m, link, geoms)
+    ]
+
+
+def model_shapes(
+    ref: Reference, m: mujoco.MjModel, link: str, geoms: list[int]
+) -> list[Primitive | Hull]:
+    """The geoms, in ``link``'s frame, as MuJoCo collides with them."""
+    out: list[Primitive | Hull] = []
+    for (kind, data, pose), g in zip(_placed_geoms(ref, m, link, geoms), geoms, strict=True):
+        if kind != "hull":
+            out.append(Primitive(kind, data, pose))
+            continue
+        try:
+            out.append(Hull(data))
+        except Exception as exc:  # qhull: a flat or degenerate mesh
+            raise ValueError(f"geom {m.geom(g).name or g}: no convex hull ({exc})") from None
     return out
 
 
@@ -592,17 +620,12 @@ def _file_digest(path: str, size: int, mtime: float) -> str:
     return hashlib.sha256(read_file(path, "mesh")).hexdigest()
 
 
-def _figures_key(ref: Reference, link: Any, shapes: list[Primitive | Hull]) -> str | None:
-    """The cache key of one link's figures: its source elements (mesh files by content),
-    the model's shapes, the sampling and the libraries; None when a file cannot be read
-    (then nothing is cached: the figures say why)."""
-    import hashlib
-    from importlib.metadata import version
-
-    from ..cache import make_key
-
-    elements: list[Any] = []
-    for el in link.collisions:
+def source_elements(ref: Reference, elements: Iterable[Any]) -> list[Any] | None:
+    """Collision or visual elements of a link as a cache key's part (mesh files by
+    content); None when a file cannot be read (then nothing is cached: the figures
+    say why)."""
+    out: list[Any] = []
+    for el in elements:
         g = el.geometry
         pose = None if el.origin is None else np.asarray(el.origin, float).round(12).tolist()
         if g.mesh is not None:
@@ -613,16 +636,20 @@ def _figures_key(ref: Reference, link: Any, shapes: list[Primitive | Hull]) -> s
             except Exception:  # unreadable: measured (and explained) every time
                 return None
             scale = None if g.mesh.scale is None else np.asarray(g.mesh.scale, float).tolist()
-            elements.append(["mesh", digest, scale, pose])
+            out.append(["mesh", digest, scale, pose])
         else:
-            elements.append([repr(g.box), repr(g.sphere), repr(g.cylinder), pose])
-    model: list[Any] = []
-    for shape in shapes:
-        if isinstance(shape, Hull):
-            model.append(["hull", hashlib.sha256(shape.points.tobytes()).hexdigest()])
-        else:
-            model.append([shape.kind, shape.size.tolist(), shape.pose.round(12).tolist()])
-    return make_key(
+            out.append([repr(g.box), repr(g.sphere), repr(g.cylinder), pose])
+    return out
+
+
+def _figures_key(ref: Reference, link: Any, model: list[Any]) -> str | None:
+    """The cache key of one link's figures: its source elements, the model's shapes
+    (:func:`model_signature`), the sampling and the libraries; None when a file cannot
+    be read."""
+    elements = source_elements(ref, link.collisions)
+    if elements is None:
+        return None
+    return stored.key(
         {
             "kind": "certificate-collision",
             "format": FIGURES_FORMAT,
@@ -630,7 +657,6 @@ def _figures_key(ref: Reference, link: Any, shapes: list[Primitive | Hull]) -> s
             "seed": SEED,
             "source": elements,
             "model": model,
-            "versions": [version(d) for d in ("trimesh", "numpy", "scipy", "manifold3d")],
         }
     )
 
@@ -640,40 +666,23 @@ _FIGURES = ("volume_ratio", "size_mm", "hausdorff_mm", "uncovered_mm", "reason")
 
 def _cached_figures(root: Path, key: str) -> dict[str, Any] | None:
     """A link's stored figures, or None (absent, or anything but what we wrote)."""
-    import json
-    import math
-
-    from ..cache import read_entry
-
-    data = read_entry(root / "certificate" / f"{key}.json")
-    try:
-        figures = json.loads(data) if data is not None else None
-    except ValueError:
-        return None
+    figures = stored.load(root, key)
     if not isinstance(figures, dict) or set(figures) - set(_FIGURES):
         return None
     for name in ("size_mm", "hausdorff_mm", "uncovered_mm"):
-        value = figures.get(name)
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            return None
-        if not math.isfinite(value) or value < 0:
+        if not stored.is_number(figures.get(name), low=0.0):
             return None
     ratio = figures.get("volume_ratio")
-    if ratio is not None and (not isinstance(ratio, int | float) or not math.isfinite(ratio)):
+    if ratio is not None and not stored.is_number(ratio):
         return None
     reason = figures.get("reason")
-    if reason is not None and (not isinstance(reason, str) or len(reason) > 500):
+    if reason is not None and not stored.is_short_text(reason):
         return None
     return figures
 
 
 def _store_figures(root: Path, key: str, figures: dict[str, Any]) -> None:
-    import json
-
-    from ..cache import write_entry
-
-    kept = {k: v for k, v in figures.items() if k in _FIGURES}
-    write_entry(root / "certificate", f"{key}.json", json.dumps(kept, sort_keys=True).encode())
+    stored.store(root, key, {k: v for k, v in figures.items() if k in _FIGURES})
 
 
 def collision_section(
@@ -714,7 +723,7 @@ def collision_section(
         key = None
         if cache_root is not None and mine and link.collisions:
             try:
-                key = _figures_key(ref, link, model_shapes(ref, m, name, mine))
+                key = _figures_key(ref, link, model_signature(ref, m, name, mine))
             except (ValueError, KeyError):
                 key = None
             cached = _cached_figures(cache_root, key) if key else None

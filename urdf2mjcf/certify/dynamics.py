@@ -167,11 +167,12 @@ def dynamics_section(
     weight = float(sum(m.body_mass)) * float(np.linalg.norm(m.opt.gravity))
     worst_m = diff_m / max(scale_m, _TINY)
     worst_g = diff_g / max(scale_g, weight * 1e-3, _TINY)
-    from importlib.metadata import version
+    from .stored import version_of
 
+    pin = version_of("pin")
     section = {
         "computed": True,
-        "reference": f"pinocchio {version('pin')}" if _has_dist("pin") else "pinocchio",
+        "reference": f"pinocchio {pin}" if pin else "pinocchio",
         "configurations": len(configs),
         "dofs": len(mj_dofs),
         "mass_matrix_relative_error": worst_m,
@@ -183,16 +184,6 @@ def dynamics_section(
     if worst_g > tol:
         failures.append(f"dynamics.gravity_relative_error: {worst_g:.3g} > {tol:g}")
     return section, failures
-
-
-def _has_dist(name: str) -> bool:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        version(name)
-    except PackageNotFoundError:
-        return False
-    return True
 
 
 def _dof_plan(mt: Match, pm: Any) -> list[tuple[list[int], list[int]]]:

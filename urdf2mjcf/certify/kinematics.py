@@ -42,14 +42,6 @@ class NameMap:
         return self.joints.get(joint, joint)
 
 
-def rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Angle of the rotation between ``a`` and ``b`` (3x3), exact near 0: from the
-    chord ``|a - b|_F = 2 sqrt(2) sin(angle / 2)``, where arccos of the trace loses
-    half the digits."""
-    chord = float(np.linalg.norm(a - b)) / (2 * math.sqrt(2))
-    return 2 * math.asin(min(1.0, chord))
-
-
 def vector_angle(a: np.ndarray, b: np.ndarray) -> float:
     """Angle between unit vectors ``a`` and ``b``, exact near 0."""
     return 2 * math.asin(min(1.0, float(np.linalg.norm(a - b)) / 2))
@@ -217,18 +209,27 @@ def set_qpos(mt: Match, d: Any, cfg: Mapping[str, float]) -> None:
 
 def model_frames(mt: Match, d: Any) -> dict[str, np.ndarray]:
     """The model's link frames (root frame) after kinematics of ``d``."""
-    r0, p0 = d.xmat[mt.root_body].reshape(3, 3), d.xpos[mt.root_body]
+    links, pos, rot = _model_poses(mt, d)
     out = {}
-    for link, (kind, i) in mt.frames.items():
-        if kind == "body":
-            x, r = d.xpos[i], d.xmat[i].reshape(3, 3)
-        else:
-            x, r = d.site_xpos[i], d.site_xmat[i].reshape(3, 3)
+    for link, x, r in zip(links, pos, rot, strict=True):
         t = np.eye(4)
-        t[:3, :3] = r0.T @ r
-        t[:3, 3] = r0.T @ (x - p0)
+        t[:3, :3], t[:3, 3] = r, x
         out[link] = t
     return out
+
+
+def _model_poses(mt: Match, d: Any) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(links, positions (n, 3), rotations (n, 3, 3)) of the matched links in the root
+    body's frame, as :func:`model_frames`, in one array operation."""
+    links = list(mt.frames)
+    body = np.array([mt.frames[name][0] == "body" for name in links], bool)
+    idx = np.array([mt.frames[name][1] for name in links], int)
+    pos, mats = np.empty((len(links), 3)), np.empty((len(links), 9))
+    pos[body], mats[body] = d.xpos[idx[body]], d.xmat[idx[body]]
+    pos[~body], mats[~body] = d.site_xpos[idx[~body]], d.site_xmat[idx[~body]]
+    r0, p0 = d.xmat[mt.root_body].reshape(3, 3), d.xpos[mt.root_body]
+    rot = np.einsum("ji,njk->nik", r0, mats.reshape(-1, 3, 3))
+    return links, (pos - p0) @ r0, rot
 
 
 def frames_section(
@@ -247,15 +248,20 @@ def frames_section(
         all_frames.append(ref_frames)
         set_qpos(mt, d, full)
         mujoco.mj_kinematics(mt.m, d)
-        ours = model_frames(mt, d)
-        for link, t in ours.items():
-            r = ref_frames[link]
-            p_err = float(np.linalg.norm(t[:3, 3] - r[:3, 3]))
-            r_err = rotation_angle(t[:3, :3], r[:3, :3])
-            if p_err > worst_p[0]:
-                worst_p = (p_err, link, k)
-            if r_err > worst_r[0]:
-                worst_r = (r_err, link, k)
+        links, pos, rot = _model_poses(mt, d)
+        if not links:
+            continue
+        ref = np.stack([ref_frames[link] for link in links])
+        p_err = np.linalg.norm(pos - ref[:, :3, 3], axis=1)
+        # the rotation angle from the chord |a - b|_F = 2 sqrt(2) sin(angle / 2): arccos
+        # of the trace would lose half the digits near 0
+        chord = np.linalg.norm((rot - ref[:, :3, :3]).reshape(len(links), 9), axis=1)
+        r_err = 2 * np.arcsin(np.minimum(1.0, chord / (2 * math.sqrt(2))))
+        i, j = int(np.argmax(p_err)), int(np.argmax(r_err))
+        if p_err[i] > worst_p[0]:
+            worst_p = (float(p_err[i]), links[i], k)
+        if r_err[j] > worst_r[0]:
+            worst_r = (float(r_err[j]), links[j], k)
     section: dict[str, Any] = {
         "max_position_error_m": worst_p[0],
         "max_rotation_error_rad": worst_r[0],

@@ -46,9 +46,9 @@ class Reference:
     @property
     def implementation(self) -> str:
         """``yourdfpy X.Y.Z``: what the certificate names as its reference."""
-        from importlib.metadata import version
+        from .stored import version_of
 
-        return f"yourdfpy {version('yourdfpy')}"
+        return f"yourdfpy {version_of('yourdfpy')}"
 
     def resolve(self, uri: str) -> Path:
         """A mesh URI as the conversion resolved it (``package://``, relative, ...)."""
@@ -66,30 +66,47 @@ class Reference:
     def frames(self, cfg: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Every link's 4x4 pose in the root link's frame at ``cfg`` (yourdfpy's
         actuated-joint order; None: all zeros), mimic joints following their leader."""
-        with quiet_yourdfpy():
-            self.urdf.update_cfg(
-                np.zeros(len(self.actuated_joints)) if cfg is None else np.asarray(cfg, float)
-            )
-        # The joint transforms yourdfpy's update_cfg just computed (its scene graph's
-        # edges), composed down the tree: what get_transform returns, without trimesh's
-        # per-call path search and matrix-chain ordering (15x faster on a 60-link robot).
-        edges = self.urdf.scene.graph.transforms.edge_data
+        q = np.zeros(len(self.actuated_joints)) if cfg is None else np.asarray(cfg, float)
+        matrices = self._joint_matrices(q)
+        # yourdfpy's joint transforms composed down the tree: what its scene graph's
+        # get_transform returns, without building the graph (its update is half of
+        # update_cfg) or trimesh's per-call path search
         out = {str(self.urdf.base_link): np.eye(4)}
-        for parent, child in self._tree_edges:
-            matrix = edges[(parent, child)].get("matrix")
-            out[child] = out[parent] @ matrix if matrix is not None else out[parent].copy()
+        for parent, child, joint in self._tree_edges:
+            out[child] = out[parent] @ matrices[joint]
         return {name: out[name] for name in self.link_names if name in out}
 
+    def _joint_matrices(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Each joint's transform at ``q`` as yourdfpy's ``update_cfg`` computes it:
+        its per-joint forward kinematics for the actuated joints in order (which sets the
+        configuration mimics read), then for the mimic joints, then the others' origins."""
+        urdf = self.urdf
+        if len(q) != len(self.actuated_joints):
+            raise ValueError(f"{len(q)} values for {len(self.actuated_joints)} joints")
+        fk = urdf._forward_kinematics_joint
+        out: dict[str, np.ndarray] = {}
+        with quiet_yourdfpy():
+            for joint, value, dofs in zip(
+                urdf.actuated_joints, q, urdf.actuated_dof_indices, strict=True
+            ):
+                out[joint.name], urdf._cfg[dofs] = fk(joint, q=float(value))
+            for joint in urdf.robot.joints:
+                if joint.mimic is not None:
+                    out[joint.name] = fk(joint, q=0.0)[0]
+                elif joint.name not in out:  # fixed, floating, planar: the origin
+                    out[joint.name] = fk(joint)[0]
+        return out
+
     @cached_property
-    def _tree_edges(self) -> list[tuple[str, str]]:
-        """(parent, child) of every joint, parents before children, from the root."""
-        children: dict[str, list[str]] = {}
+    def _tree_edges(self) -> list[tuple[str, str, str]]:
+        """(parent, child, joint) of every joint, parents before children, from the root."""
+        children: dict[str, list[tuple[str, str]]] = {}
         for joint in self.urdf.robot.joints:
-            children.setdefault(joint.parent, []).append(joint.child)
+            children.setdefault(joint.parent, []).append((joint.child, joint.name))
         order, edges = [str(self.urdf.base_link)], []
         for link in order:  # grows as it goes: breadth first
-            for child in children.get(link, ()):
-                edges.append((link, child))
+            for child, joint in children.get(link, ()):
+                edges.append((link, child, joint))
                 order.append(child)
         return edges
 
@@ -127,7 +144,7 @@ def load(document: UrdfDocument, *, collision_meshes: bool = False) -> Reference
         with quiet_yourdfpy():
             urdf = yourdfpy.URDF.load(
                 io.BytesIO(document.xml),
-                build_scene_graph=True,
+                build_scene_graph=False,  # frames: composed from its joint transforms
                 build_collision_scene_graph=collision_meshes,
                 load_meshes=False,
                 load_collision_meshes=collision_meshes,
@@ -138,4 +155,17 @@ def load(document: UrdfDocument, *, collision_meshes: bool = False) -> Reference
         raise InputError(
             f"the reference (yourdfpy) cannot read it: {msg}", file=document.source
         ) from None
-    return Reference(document=document, urdf=urdf)
+    ref = Reference(document=document, urdf=urdf)
+    try:
+        if urdf.base_link is None:  # yourdfpy finds it only while building a scene graph
+            urdf._base_link = urdf._determine_base_link()
+        for joint in urdf.robot.joints:  # yourdfpy keeps every number it is given
+            if joint.axis is not None and np.shape(joint.axis) != (3,):
+                raise ValueError(f"joint {joint.name!r}: an axis of {np.size(joint.axis)} numbers")
+        ref.frames()  # what it cannot compute it cannot read
+    except Exception as exc:
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(
+            f"the reference (yourdfpy) cannot read it: {msg}", file=document.source
+        ) from None
+    return ref

@@ -20,7 +20,15 @@ from typing import Any
 
 from ..errors import ValidationError
 from ..mjmodel import LOCK as _LOCK
-from ..mjmodel import compile_xml, files_named, home_data, without_visuals
+from ..mjmodel import (
+    PassiveRun,
+    compile_xml,
+    files_named,
+    home_data,
+    start_passive_second,
+    warning_handler,
+    without_visuals,
+)
 from ..untrusted import check_regular
 
 log = logging.getLogger(__name__)
@@ -35,6 +43,10 @@ class ValidateConfig:
     """Most steps validation takes, whatever the model's timestep: a timestep below
     ``duration / max_steps`` (0.1 ms) simulates less than ``duration`` (said in a
     debug log), so a tiny ``<option timestep>`` cannot make validation run forever."""
+    passive_second: bool = False
+    """Also step the certificate's passive second (:func:`~urdf2mjcf.mjmodel.passive_second`)
+    on a copy of the model, in a thread beside the second above: on two cores it costs
+    no time. What it finds is the certificate's to judge, not validation's."""
 
 
 @dataclass(frozen=True)
@@ -47,6 +59,8 @@ class ValidationResult:
     steps: int
     model: Any = field(default=None, repr=False, compare=False)
     """The ``mujoco.MjModel`` validated, for whoever reads the same document next."""
+    passive: PassiveRun | None = field(default=None, repr=False, compare=False)
+    """The passive second, when :attr:`ValidateConfig.passive_second` asked for it."""
 
 
 def run(
@@ -80,8 +94,9 @@ def run(
     warnings: list[str] = []
     with _LOCK:
         previous = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(lambda msg: warnings.append(str(msg).strip()))
+        mujoco.set_mju_user_warning(warning_handler(warnings))
         twin: _Stepper | None = None
+        passive: PassiveRun | None = None
         try:
             try:
                 if files is None:  # MuJoCo opens it (and what it names) itself
@@ -102,13 +117,13 @@ def run(
                 if twin.rejected:  # something used what the twin left out: step the whole
                     twin = None
             if twin is None:
-                d, steps = _simulate(m, cfg, warnings)
+                d, steps, passive = _simulate_both(m, cfg, warnings)
             else:
                 try:  # the whole model's sensors at home (rays see visual geoms too)
                     mujoco.mj_forward(m, home_data(m))
                 except mujoco.FatalError as exc:
                     raise _fatal(exc, m, cfg, shown) from None
-                d, steps = twin.data, twin.steps
+                d, steps, passive = twin.data, twin.steps, twin.passive
             if isinstance(d, Exception):  # the model stepped says how big its arena is
                 raise _fatal(d, m if twin is None else twin.model, cfg, shown) from None
         finally:
@@ -126,7 +141,9 @@ def run(
             f"MuJoCo warned while simulating {cfg.duration:g} s: {detail}", file=shown
         )
     log.debug("validated %s: nbody=%d nq=%d", shown, m.nbody, m.nq)
-    return ValidationResult(m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps, model=m)
+    return ValidationResult(
+        m.nbody, m.njnt, m.ngeom, m.nmesh, m.nq, steps, model=m, passive=passive
+    )
 
 
 def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, int]:
@@ -153,6 +170,24 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
     finally:
         m.opt.disableflags = flags
     return d, steps
+
+
+def _simulate_both(
+    m: Any, cfg: ValidateConfig, warnings: list[str]
+) -> tuple[Any, int, PassiveRun | None]:
+    """:func:`_simulate`, and the passive second on a copy of ``m`` beside it when
+    ``cfg`` asks (None: not asked, or it failed: the certificate steps it then)."""
+    if not cfg.passive_second:
+        return (*_simulate(m, cfg, warnings), None)
+    import copy
+
+    passive = start_passive_second(copy.copy(m), home_data(m))
+    d, steps = _simulate(m, cfg, warnings)
+    try:
+        return d, steps, passive.result()
+    except Exception:  # pragma: no cover - passive_second catches MuJoCo's errors
+        log.debug("passive second not stepped", exc_info=True)
+        return d, steps, None
 
 
 def step_count(cfg: ValidateConfig, timestep: float) -> int:
@@ -199,6 +234,7 @@ class _Stepper(threading.Thread):
         self.data: Any = None
         self.model: Any = None
         self.steps = 0
+        self.passive: PassiveRun | None = None
 
     def run(self) -> None:
         import mujoco
@@ -211,7 +247,7 @@ class _Stepper(threading.Thread):
         finally:
             self.files = {}  # the bytes are the caller's; keep no second reference
         self.model = m
-        self.data, self.steps = _simulate(m, self.cfg, self.warnings)
+        self.data, self.steps, self.passive = _simulate_both(m, self.cfg, self.warnings)
 
 
 def _fatal(exc: Exception, m: Any, cfg: ValidateConfig, shown: Path) -> ValidationError:
