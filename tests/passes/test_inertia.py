@@ -409,6 +409,26 @@ def test_point_mass_on_a_link_with_a_joint_is_repaired_into_a_one_centimetre_sph
     assert mujoco_error(rob, m.inertials) is None
 
 
+def test_point_mass_on_a_link_with_geometry_gets_its_geometry_inertia_at_the_declared_mass():
+    # gingerurdf.urdf (urdf_files_dataset): 30 kg links with ixx = iyy = izz = 0. A
+    # 1 cm sphere's tensor on them diverges in a fifth of a second; the box they are
+    # shaped like, at their own mass, does not.
+    rob = robot(
+        Link("base", inertial=MASSIVE),
+        Link("arm", inertial=urdf_inertial(30.0, (0.0,) * 6, xyz=(0.0, 0.0, 0.3))),
+        joints=(rev("j", "base", "arm"),),
+    )
+    m = convert(rob, **collision("arm", geom("box", (0.05, 0.1, 0.3), pos=(0.0, 0.0, 0.3))))
+    b = m.inertials["arm"]
+    w, d, h = 0.1, 0.2, 0.6
+    box = (30.0 / 12 * (d * d + h * h), 30.0 / 12 * (w * w + h * h), 30.0 / 12 * (w * w + d * d))
+    assert b.fullinertia == pytest.approx(box + (0, 0, 0), rel=1e-12, abs=1e-15)
+    assert (b.mass, b.pos, b.source) == (30.0, (0.0, 0.0, 0.3), "repaired")
+    (note,) = notes_of(m, "repaired")
+    assert "collision geometry (box) at the declared mass 30 kg" in note
+    assert mujoco_error(rob, m.inertials) is None
+
+
 def test_boundary_tensors_are_repaired_exactly_when_mujoco_rejects_them():
     # Thin plates (A + B = C up to rounding) in random orientations: MuJoCo's own
     # eigen-solver decides, with no tolerance; rpy = 0 so the URDF numbers are what

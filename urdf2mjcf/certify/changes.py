@@ -43,13 +43,13 @@ def from_notes(notes: Iterable[Note]) -> list[dict[str, Any]]:
 def amended_by_conversion(model: Model) -> dict[str, LinkInertial | None]:
     """Links whose inertial our conversion supplied (repaired or estimated): the value it
     wrote, in the link frame."""
-    from ..passes.emit import _mat
+    from ..passes.inertia import full_matrix
 
     out: dict[str, LinkInertial | None] = {}
     for name, inertial in model.inertials.items():
         if inertial is not None and inertial.source != "urdf":
             out[name] = LinkInertial(
-                inertial.mass, np.array(inertial.pos, float), _mat(inertial.fullinertia)
+                inertial.mass, np.array(inertial.pos, float), full_matrix(inertial.fullinertia)
             )
     return out
 
@@ -60,7 +60,7 @@ def amended_by_rule(ref: Reference, free_root: bool = False) -> dict[str, LinkIn
     mass 0) on a link with geometry to estimate it from or with a joint that MuJoCo
     requires mass behind (``free_root``: the root has a free joint). A massless frame on
     a fixed joint (tool0) stays massless."""
-    from ..passes.inertia import _mujoco_rejects
+    from ..passes.inertia import mujoco_rejects
     from ..transforms import mujoco_fullinertia
 
     moving = {j.child for j in ref.urdf.robot.joints if j.type != "fixed"}
@@ -75,7 +75,7 @@ def amended_by_rule(ref: Reference, free_root: bool = False) -> dict[str, LinkIn
             continue
         moments = np.linalg.eigvalsh(inertial.inertia)
         point = link.name in moving and moments.min() < 1e-15  # MuJoCo's moving-body check
-        if point or _mujoco_rejects(mujoco_fullinertia(inertial.inertia)):
+        if point or mujoco_rejects(mujoco_fullinertia(inertial.inertia)):
             out[link.name] = None
     return out
 

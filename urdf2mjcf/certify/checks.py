@@ -158,7 +158,7 @@ def geometry_inertia(
         # a link with collision elements is measured on them (its visuals only when
         # none of them loads: then nothing is kept, so no visual file is missed)
         which = "collisions" if link.collisions else "visuals"
-        elements = source_elements(ref, getattr(link, which))
+        elements = source_elements(ref, link, which)
         if elements is not None:
             key = stored.key(
                 {"kind": "certificate-inertia", "format": INERTIA_FORMAT, which: elements}
@@ -438,7 +438,7 @@ def _overlap_key(ref: Reference, links: tuple[Any, Any], poses: tuple[Any, Any])
     poses (None when a mesh file cannot be read)."""
     parts = []
     for link, pose in zip(links, poses, strict=True):
-        elements = source_elements(ref, link.collisions)
+        elements = source_elements(ref, link)
         if elements is None:
             return None
         parts.append([elements, np.asarray(pose, float).round(12).tolist()])

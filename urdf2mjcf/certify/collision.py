@@ -448,11 +448,10 @@ def body_from_link(ref: Reference, m: mujoco.MjModel, link: str, body: int) -> n
 
 
 def _zero_frames(ref: Reference) -> dict[str, np.ndarray]:
-    cached = getattr(ref, "_certify_zero_frames", None)  # fixed joints only matter: any cfg
-    if cached is None:
-        cached = ref.frames(None)
-        object.__setattr__(ref, "_certify_zero_frames", cached)
-    return cached
+    if "zero_frames" not in ref.memo:  # fixed joints only matter: any configuration
+        ref.memo["zero_frames"] = ref.frames(None)
+    frames: dict[str, np.ndarray] = ref.memo["zero_frames"]
+    return frames
 
 
 def _placed_geoms(
@@ -600,7 +599,7 @@ def measure_link(
     return out
 
 
-FIGURES_FORMAT = 1
+FIGURES_FORMAT = 2
 """Bump when what :func:`measure_link` computes changes (the cached figures go stale)."""
 
 
@@ -620,14 +619,25 @@ def _file_digest(path: str, size: int, mtime: float) -> str:
     return hashlib.sha256(read_file(path, "mesh")).hexdigest()
 
 
-def source_elements(ref: Reference, elements: Iterable[Any]) -> list[Any] | None:
-    """Collision or visual elements of a link as a cache key's part (mesh files by
+def source_elements(ref: Reference, link: Any, which: str = "collisions") -> list[Any] | None:
+    """A link's collision (or visual) elements as a cache key's part (mesh files by
     content); None when a file cannot be read (then nothing is cached: the figures
-    say why)."""
+    say why). Kept on ``ref``: three kinds of figures ask for the same link's."""
+    memo = ref.memo.setdefault("source_elements", {})
+    key = (link.name, which)
+    if key not in memo:
+        memo[key] = _source_elements(ref, getattr(link, which))
+    return memo[key]
+
+
+def _source_elements(ref: Reference, elements: Iterable[Any]) -> list[Any] | None:
+    def numbers(value: Any) -> Any:
+        return None if value is None else np.asarray(value, float).round(12).tolist()
+
     out: list[Any] = []
     for el in elements:
         g = el.geometry
-        pose = None if el.origin is None else np.asarray(el.origin, float).round(12).tolist()
+        pose = numbers(el.origin)
         if g.mesh is not None:
             try:
                 path = ref.resolve(g.mesh.filename)
@@ -635,10 +645,15 @@ def source_elements(ref: Reference, elements: Iterable[Any]) -> list[Any] | None
                 digest = _file_digest(str(path), st.st_size, st.st_mtime)
             except Exception:  # unreadable: measured (and explained) every time
                 return None
-            scale = None if g.mesh.scale is None else np.asarray(g.mesh.scale, float).tolist()
-            out.append(["mesh", digest, scale, pose])
+            out.append(["mesh", digest, numbers(g.mesh.scale), pose])
+        elif g.box is not None:
+            out.append(["box", numbers(g.box.size), pose])
+        elif g.sphere is not None:
+            out.append(["sphere", float(g.sphere.radius), pose])
+        elif g.cylinder is not None:
+            out.append(["cylinder", float(g.cylinder.radius), float(g.cylinder.length), pose])
         else:
-            out.append([repr(g.box), repr(g.sphere), repr(g.cylinder), pose])
+            out.append(["none", pose])
     return out
 
 
@@ -646,7 +661,7 @@ def _figures_key(ref: Reference, link: Any, model: list[Any]) -> str | None:
     """The cache key of one link's figures: its source elements, the model's shapes
     (:func:`model_signature`), the sampling and the libraries; None when a file cannot
     be read."""
-    elements = source_elements(ref, link.collisions)
+    elements = source_elements(ref, link)
     if elements is None:
         return None
     return stored.key(

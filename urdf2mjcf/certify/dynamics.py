@@ -129,38 +129,47 @@ def dynamics_section(
     pin_dofs = [i for p, _ in plan for i in p]
     mj_dofs = [i for _, q in plan for i in q]
     d = mujoco.MjData(m)
+    joints, names = list(pm.joints), list(pm.names)  # each access copies pinocchio's vector
     diff_m = diff_g = scale_m = scale_g = 0.0
     full = np.zeros((m.nv, m.nv))
-    for cfg in configs:
-        values = with_mimics(mt.ref, cfg)
-        set_qpos(mt, d, values)
-        if mt.root_free is not None:  # identity orientation: see the module's comment
-            adr = m.jnt_qposadr[mt.root_free]
-            d.qpos[adr + 3 : adr + 7] = (1.0, 0.0, 0.0, 0.0)
-        mujoco.mj_forward(m, d)
-        q = pin.neutral(pm)
-        for j in range(1, pm.njoints):
-            joint, angle = pm.joints[j], values.get(pm.names[j])
-            if angle is None or joint.nv != 1:
-                continue
-            if joint.nq == 2:  # continuous: (cos, sin)
-                q[joint.idx_q : joint.idx_q + 2] = (math.cos(angle), math.sin(angle))
-            else:
-                q[joint.idx_q] = angle
-        r0 = d.xmat[mt.root_body].reshape(3, 3)
-        pm.gravity.linear = r0.T @ m.opt.gravity
-        mass = pin.crba(pm, pd, q)
-        mass = np.triu(mass) + np.triu(mass, 1).T
-        gravity = pin.computeGeneralizedGravity(pm, pd, q)
-        mujoco.mj_fullM(m, d, full)
-        ours = full - np.diag(m.dof_armature)
-        a = ours[np.ix_(mj_dofs, mj_dofs)]
-        b = mass[np.ix_(pin_dofs, pin_dofs)]
-        diff_m = max(diff_m, float(np.abs(a - b).max()))
-        scale_m = max(scale_m, float(np.abs(b).max()))
-        ga, gb = d.qfrc_bias[mj_dofs], gravity[pin_dofs]
-        diff_g = max(diff_g, float(np.abs(ga - gb).max()))
-        scale_g = max(scale_g, float(np.abs(gb).max()))
+    flags = m.opt.disableflags
+    # the sensors (a lidar's rays) and contacts change neither matrix: not evaluated
+    m.opt.disableflags = (
+        flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR) | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    )
+    try:
+        for cfg in configs:
+            values = with_mimics(mt.ref, cfg)
+            set_qpos(mt, d, values)
+            if mt.root_free is not None:  # identity orientation: see the module's comment
+                adr = m.jnt_qposadr[mt.root_free]
+                d.qpos[adr + 3 : adr + 7] = (1.0, 0.0, 0.0, 0.0)
+            mujoco.mj_forward(m, d)
+            q = pin.neutral(pm)
+            for j in range(1, pm.njoints):
+                joint, angle = joints[j], values.get(names[j])
+                if angle is None or joint.nv != 1:
+                    continue
+                if joint.nq == 2:  # continuous: (cos, sin)
+                    q[joint.idx_q : joint.idx_q + 2] = (math.cos(angle), math.sin(angle))
+                else:
+                    q[joint.idx_q] = angle
+            r0 = d.xmat[mt.root_body].reshape(3, 3)
+            pm.gravity.linear = r0.T @ m.opt.gravity
+            mass = pin.crba(pm, pd, q)
+            mass = np.triu(mass) + np.triu(mass, 1).T
+            gravity = pin.computeGeneralizedGravity(pm, pd, q)
+            mujoco.mj_fullM(m, d, full)
+            ours = full - np.diag(m.dof_armature)
+            a = ours[np.ix_(mj_dofs, mj_dofs)]
+            b = mass[np.ix_(pin_dofs, pin_dofs)]
+            diff_m = max(diff_m, float(np.abs(a - b).max()))
+            scale_m = max(scale_m, float(np.abs(b).max()))
+            ga, gb = d.qfrc_bias[mj_dofs], gravity[pin_dofs]
+            diff_g = max(diff_g, float(np.abs(ga - gb).max()))
+            scale_g = max(scale_g, float(np.abs(gb).max()))
+    finally:
+        m.opt.disableflags = flags
     # Relative to the largest entry over all configurations: gravity torques vanish at
     # some poses (an arm pointing up), where a relative error per pose means nothing.
     # Torques below the robot's weight on a 1 mm lever count as zero.

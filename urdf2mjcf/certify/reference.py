@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,8 @@ class Reference:
     """The xacro pass's output: the expanded URDF bytes and the package resolver."""
     urdf: Any
     """The ``yourdfpy.URDF`` (collision meshes loaded on first use)."""
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    """What the sections compute once per reference (by section)."""
 
     @property
     def source(self) -> Path:

@@ -36,8 +36,10 @@ Rules, per link:
    with joints is a link whose parent joint is not fixed (and the root when
    ``free_root``). Such a link gets mass from its geometry as in rule 5, or else
    ``fallback_mass`` with ``fallback_inertia`` about the link origin; a link
-   whose mass is a point mass (moments below 1e-15) gets rule 3's tensor
-   instead. Note ``repaired``.
+   whose mass is a point mass (moments below 1e-15) keeps its mass and centre
+   of mass and gets the tensor of its geometry (as rule 5 finds it) scaled to
+   that mass, or rule 3's tensor when it has no geometry with a volume. Note
+   ``repaired``.
 5. **No** ``<inertial>`` **but geometry: estimated** at
    ``link_density.get(link, density)``, from the link's collision geoms (boxes,
    spheres, cylinders, capsules analytically; mesh pieces as their convex hull,
@@ -130,7 +132,7 @@ def run(model: Model, cfg: InertiaConfig) -> Model:
         if _has_joint(robot, link.name, cfg) and not _carries_mass(robot, link.name, inertials):
             current = inertials[link.name]
             if current is not None and current.mass >= MJ_MINVAL:
-                inertials[link.name] = _point_mass_repaired(link.name, current, notes)
+                inertials[link.name] = _point_mass_repaired(model, link, cfg, current, notes)
             else:
                 inertials[link.name] = _massless_repaired(model, link, cfg, notes)
 
@@ -179,7 +181,7 @@ def _checked(
 ) -> BodyInertial:
     """The inertial as given when MuJoCo accepts its tensor, else repaired (rule 3)."""
     full = mujoco_fullinertia(tensor)
-    reason = _mujoco_rejects(full)
+    reason = mujoco_rejects(full)
     if reason is not None:
         old, new, full = _repaired_tensor(full, mass)
         notes.append(
@@ -195,7 +197,7 @@ def _checked(
 
 
 @functools.lru_cache(maxsize=4096)
-def _mujoco_rejects(fullinertia: Six) -> str | None:
+def mujoco_rejects(fullinertia: Six) -> str | None:
     """MuJoCo's verdict on a body's inertia as emit writes it: None, or its error.
 
     Emit writes ``diaginertia`` when the off-diagonal terms are zero, else
@@ -223,7 +225,7 @@ def _mujoco_rejects(fullinertia: Six) -> str | None:
 
 def _repaired_tensor(full: Six, mass: float) -> tuple[np.ndarray, np.ndarray, Six]:
     """Rule 3: (old moments, new moments, repaired fullinertia) with the axes kept."""
-    old, axes = np.linalg.eigh(_symmetric(full))  # ascending
+    old, axes = np.linalg.eigh(full_matrix(full))  # ascending
     if old[-1] >= _MIN_MOMENT:
         floor = max(_FLOOR_RATIO * old[-1], _MIN_MOMENT)
     else:  # nothing to scale from: a point mass
@@ -234,12 +236,12 @@ def _repaired_tensor(full: Six, mass: float) -> tuple[np.ndarray, np.ndarray, Si
         if gap > 0:
             new[:2] += gap / 2
         fixed = mujoco_fullinertia(axes @ np.diag(new) @ axes.T)
-        if _mujoco_rejects(fixed) is None:
+        if mujoco_rejects(fixed) is None:
             return old, new, fixed
     raise AssertionError(f"could not repair inertia {full}")  # pragma: no cover
 
 
-def _symmetric(full: Six) -> np.ndarray:
+def full_matrix(full: Six) -> np.ndarray:
     """MuJoCo (ixx, iyy, izz, ixy, ixz, iyz) -> symmetric (3, 3)."""
     ixx, iyy, izz, ixy, ixz, iyz = full
     return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]], dtype=float)
@@ -361,23 +363,45 @@ def _carries_mass(robot: Robot, name: str, inertials: Mapping[str, BodyInertial 
         if (
             inertial is not None
             and inertial.mass >= MJ_MINVAL
-            and np.linalg.eigvalsh(_symmetric(inertial.fullinertia)).min() >= MJ_MINVAL
+            and np.linalg.eigvalsh(full_matrix(inertial.fullinertia)).min() >= MJ_MINVAL
         ):
             return True
         stack.extend(j.child for j in robot.child_joints.get(link, ()) if j.type == "fixed")
     return False
 
 
-def _point_mass_repaired(name: str, inertial: BodyInertial, notes: list[Note]) -> BodyInertial:
-    """A body with joints whose only mass is a point mass: give it rule 3's tensor."""
+def _point_mass_repaired(
+    model: Model, link: Link, cfg: InertiaConfig, inertial: BodyInertial, notes: list[Note]
+) -> BodyInertial:
+    """A body with joints MuJoCo rejects although it has mass. A point mass (no moment
+    reaches 1e-12 kg m^2) gets the tensor of its geometry (as rule 5 finds it) scaled
+    to the declared mass, about the declared centre of mass: a heavy link given a
+    pebble's inertia swings its joints faster than a step can follow. Other tensors
+    (a negative moment MuJoCo lets a body without joints have), and a point mass
+    without geometry, get rule 3's."""
+    element = f"link '{link.name}'"
+    why = "a body with joints needs principal moments >= 1e-15 kg m^2 in MuJoCo"
+    density = cfg.link_density.get(link.name, cfg.density)
+    point = float(np.abs(np.linalg.eigvalsh(full_matrix(inertial.fullinertia))).max()) < _MIN_MOMENT
+    props, what = _from_geometry(model, link, density, []) if point else (None, None)
+    if props is not None and props.mass >= MJ_MINVAL:
+        tensor = props.inertia * (inertial.mass / props.mass)
+        full = mujoco_fullinertia(tensor)
+        if mujoco_rejects(full) is None:
+            old = np.linalg.eigvalsh(full_matrix(inertial.fullinertia))
+            new = np.linalg.eigvalsh(tensor)
+            notes.append(
+                Note(
+                    "repaired",
+                    element,
+                    f"{why}: principal moments {_fmt(old)} -> {_fmt(new)} kg m^2, those of "
+                    f"its {what} at the declared mass {inertial.mass:.6g} kg",
+                )
+            )
+            return dataclasses.replace(inertial, fullinertia=full, source="repaired")
     old, new, full = _repaired_tensor(inertial.fullinertia, inertial.mass)
     notes.append(
-        Note(
-            "repaired",
-            f"link '{name}'",
-            "a body with joints needs principal moments >= 1e-15 kg m^2 in MuJoCo; "
-            f"principal moments {_fmt(old)} -> {_fmt(new)} kg m^2",
-        )
+        Note("repaired", element, f"{why}; principal moments {_fmt(old)} -> {_fmt(new)} kg m^2")
     )
     return dataclasses.replace(inertial, fullinertia=full, source="repaired")
 
