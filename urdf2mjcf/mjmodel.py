@@ -266,49 +266,67 @@ class PassiveRun:
     position, velocity or acceleration warnings, or a fatal error)."""
 
 
-def passive_second(m: Any, start: Any) -> PassiveRun:
-    """Step ``m`` passively for a second (at most :data:`MAX_PASSIVE_STEPS` steps) from
-    the state of the ``mujoco.MjData`` ``start`` (left alone). ``m``'s flags are
-    changed while it steps and restored after; what MuJoCo warns meanwhile is
-    dropped (a divergence is in the figures)."""
+def passive_steps(m: Any) -> int:
+    """Steps of :func:`passive_second` at ``m``'s timestep."""
     import math
 
+    ts = float(m.opt.timestep)
+    return MAX_PASSIVE_STEPS if not ts > 0 else int(min(MAX_PASSIVE_STEPS, math.ceil(1.0 / ts)))
+
+
+def passive_second(m: Any, start: Any) -> PassiveRun:
+    """Step ``m`` passively for a second (:func:`passive_steps`) from the state of the
+    ``mujoco.MjData`` ``start`` (left alone). ``m``'s flags are changed while it steps
+    and restored after; what MuJoCo warns meanwhile is dropped (a divergence is in
+    the figures)."""
     import mujoco
-    import numpy as np
 
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = start.qpos, start.qvel
     if m.na:
         d.act[:] = start.act
     d.mocap_pos[:], d.mocap_quat[:] = start.mocap_pos, start.mocap_quat
+    flags = m.opt.disableflags
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    _route.sink = []
+    try:
+        run, _ = step_with_energy(m, d, passive_steps(m))
+    finally:
+        m.opt.disableflags = flags
+        _route.sink = None
+    return run
+
+
+def step_with_energy(m: Any, d: Any, steps: int) -> tuple[PassiveRun, Exception | None]:
+    """Step ``d`` ``steps`` times from its state with MuJoCo's energy on and the sensors
+    off (they read the state and never change it: a lidar's rays would cost thirty
+    times the physics), reading the energy every :data:`PASSIVE_CHUNK` steps; stops
+    where the state stops being finite. (The figures, and MuJoCo's fatal error if one
+    stopped it.) ``m``'s flags are restored after."""
+    import mujoco
+    import numpy as np
+
     flags = (m.opt.enableflags, m.opt.disableflags)
     m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-    # Sensors read the state and never change it: a lidar's rays would cost thirty
-    # times the physics
-    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION) | int(
-        mujoco.mjtDisableBit.mjDSBL_SENSOR
-    )
-    ts = float(m.opt.timestep)
-    steps = MAX_PASSIVE_STEPS if not ts > 0 else int(min(MAX_PASSIVE_STEPS, math.ceil(1.0 / ts)))
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
     diverged: int | None = None
-    _route.sink = []
+    fatal: Exception | None = None
+    bad = [
+        mujoco.mjtWarning.mjWARN_BADQACC,
+        mujoco.mjtWarning.mjWARN_BADQVEL,
+        mujoco.mjtWarning.mjWARN_BADQPOS,
+    ]
     try:
         mujoco.mj_forward(m, d)
         start_j = peak = float(d.energy.sum())
-        at = 0
-        bad = [
-            mujoco.mjtWarning.mjWARN_BADQACC,
-            mujoco.mjtWarning.mjWARN_BADQVEL,
-            mujoco.mjtWarning.mjWARN_BADQPOS,
-        ]
-        done = 0
+        at = done = 0
         while done < steps:
             # MuJoCo steps a chunk without the GIL; the energy is read between chunks
             chunk = min(PASSIVE_CHUNK, steps - done)
             try:
                 mujoco.mj_step(m, d, nstep=chunk)
-            except mujoco.FatalError:
-                diverged = done + chunk
+            except mujoco.FatalError as exc:
+                diverged, fatal = done + chunk, exc
                 break
             done += chunk
             if not np.isfinite(d.qacc).all() or any(d.warning[w].number for w in bad):
@@ -319,8 +337,7 @@ def passive_second(m: Any, start: Any) -> PassiveRun:
                 peak, at = e, done
     finally:
         m.opt.enableflags, m.opt.disableflags = flags
-        _route.sink = None
-    return PassiveRun(steps, float(m.opt.timestep), start_j, peak, at, diverged)
+    return PassiveRun(steps, float(m.opt.timestep), start_j, peak, at, diverged), fatal
 
 
 def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:

@@ -26,6 +26,8 @@ from urdf2mjcf.certify import compile_written, reference
 from urdf2mjcf.certify.checks import lint_section
 from urdf2mjcf.passes import xacro
 
+SIM_ARM = Path(__file__).parents[1] / "data" / "sim_robot" / "urdf" / "sim_arm.urdf.xacro"
+
 
 def _panda() -> Path:
     return next(p for p in example_robot_data_urdfs() if p.name == "panda.urdf")
@@ -62,6 +64,23 @@ def test_passive_second_from_validation_equals_one_stepped_alone(
     stepped = alone["checks"]["passive_energy"]
     assert given == stepped
     assert given["max_growth_j"] >= 0 and given["start_j"] != 0 and given["steps"] == 500
+    # no actuators: validation's second was the passive one, stepped once
+    assert scene.nu == 0
+
+
+def test_passive_second_of_an_actuated_robot_is_stepped_beside_validation(tmp_path: Path) -> None:
+    # sim_arm: ros2_control servos, a lidar, cameras, visual meshes (the physics twin)
+    out = tmp_path / "out" / "robot.xml"
+    report = urdf2mjcf.convert(SIM_ARM, out, use_environment=False)
+    assert report.certificate is not None
+    given = report.certificate.sections["checks"]["checks"]["passive_energy"]
+    files = [str(f.relative_to(out.parent)) for f in report.files]
+    scene = compile_written(out.with_name("scene.xml"), files)
+    assert scene.nu > 0  # its servos hold it in validation's second, not in this one
+    ref = reference.load(xacro.run(SIM_ARM, urdf2mjcf.make_options(use_environment=False).xacro))
+    alone = lint_section(ref, scene, model_path=out.with_name("scene.xml"))
+    assert given == alone["checks"]["passive_energy"]
+    assert given["steps"] > 0 and not given["diverged"]
 
 
 def test_a_diverging_passive_second_writes_no_log_file(tmp_path: Path, monkeypatch) -> None:

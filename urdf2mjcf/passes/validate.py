@@ -25,7 +25,9 @@ from ..mjmodel import (
     compile_xml,
     files_named,
     home_data,
+    passive_steps,
     start_passive_second,
+    step_with_energy,
     warning_handler,
     without_visuals,
 )
@@ -148,7 +150,7 @@ def run(
 
 def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, int]:
     """Step ``m`` for ``cfg.duration`` from home: (its data, or the FatalError that
-    stopped it; the steps asked for). Stops at the first warning."""
+    stopped it; the steps asked for)."""
     import mujoco
 
     d = home_data(m)
@@ -159,12 +161,14 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
     # thirty times the physics. The trajectory is the same either way.
     flags = m.opt.disableflags
     quiet = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+    # The steps between go to MuJoCo in one call: it holds no GIL meanwhile, so a
+    # thread beside (the certificate's) cannot make each step wait for it.
+    between = max(0, steps - 2)
     try:
-        for i in range(steps):
-            m.opt.disableflags = flags if i in (0, steps - 1) else quiet
-            mujoco.mj_step(m, d)
-            if warnings:
-                break
+        for count, sensors in ((1, True), (between, False), (steps - 1 - between, True)):
+            if count and not warnings:
+                m.opt.disableflags = flags if sensors else quiet
+                mujoco.mj_step(m, d, nstep=count)
     except mujoco.FatalError as exc:
         return exc, steps
     finally:
@@ -175,10 +179,15 @@ def _simulate(m: Any, cfg: ValidateConfig, warnings: list[str]) -> tuple[Any, in
 def _simulate_both(
     m: Any, cfg: ValidateConfig, warnings: list[str]
 ) -> tuple[Any, int, PassiveRun | None]:
-    """:func:`_simulate`, and the passive second on a copy of ``m`` beside it when
-    ``cfg`` asks (None: not asked, or it failed: the certificate steps it then)."""
+    """:func:`_simulate`, and the passive second when ``cfg`` asks (None: not asked, or
+    it failed: the certificate steps it then). A robot without actuators steps the
+    same trajectory passively: its second is the passive one, stepped once with the
+    energy read (a warning still fails validation); else the passive second steps a
+    copy of ``m`` in a thread beside."""
     if not cfg.passive_second:
         return (*_simulate(m, cfg, warnings), None)
+    if m.nu == 0 and step_count(cfg, float(m.opt.timestep)) == passive_steps(m):
+        return _simulate_with_energy(m, cfg, warnings)
     import copy
 
     passive = start_passive_second(copy.copy(m), home_data(m))
@@ -188,6 +197,26 @@ def _simulate_both(
     except Exception:  # pragma: no cover - passive_second catches MuJoCo's errors
         log.debug("passive second not stepped", exc_info=True)
         return d, steps, None
+
+
+def _simulate_with_energy(
+    m: Any, cfg: ValidateConfig, warnings: list[str]
+) -> tuple[Any, int, PassiveRun | None]:
+    """:func:`_simulate` of a model without actuators, as the passive second steps it:
+    the sensors evaluated at home and at the end."""
+    import mujoco
+
+    d = home_data(m)
+    steps = step_count(cfg, float(m.opt.timestep))
+    run, fatal = step_with_energy(m, d, steps)
+    if fatal is not None:
+        return fatal, steps, None
+    if run.diverged_at is None:
+        try:
+            mujoco.mj_forward(m, d)  # the sensors at the end
+        except mujoco.FatalError as exc:
+            return exc, steps, None
+    return d, steps, run
 
 
 def step_count(cfg: ValidateConfig, timestep: float) -> int:
