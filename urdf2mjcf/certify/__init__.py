@@ -34,7 +34,7 @@ from .tolerances import Tolerances
 
 log = logging.getLogger(__name__)
 
-SAMPLES = 8
+SAMPLES = 4
 """Random configurations besides home (the certificate's cost is linear in them)."""
 DYNAMICS_SAMPLES = 3
 """Random configurations (besides home) for the mass matrix and gravity torques."""
