@@ -316,10 +316,14 @@ def step_with_energy(m: Any, d: Any, steps: int) -> tuple[PassiveRun, Exception 
         mujoco.mjtWarning.mjWARN_BADQVEL,
         mujoco.mjtWarning.mjWARN_BADQPOS,
     ]
+    start_j = peak = 0.0
+    at = done = 0
     try:
-        mujoco.mj_forward(m, d)
+        try:
+            mujoco.mj_forward(m, d)
+        except mujoco.FatalError as exc:  # out of arena at home already
+            return PassiveRun(steps, float(m.opt.timestep), 0.0, 0.0, 0, 0), exc
         start_j = peak = float(d.energy.sum())
-        at = done = 0
         while done < steps:
             # MuJoCo steps a chunk without the GIL; the energy is read between chunks
             chunk = min(PASSIVE_CHUNK, steps - done)
