@@ -75,14 +75,8 @@ def compile_xml(
     import mujoco
 
     text = xml.decode() if isinstance(xml, bytes) else xml
-    sink = warnings if warnings is not None else []
-    with LOCK:
-        previous = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(warning_handler(sink))
-        try:
-            return mujoco.MjModel.from_xml_string(text, dict(files))
-        finally:
-            mujoco.set_mju_user_warning(previous)
+    with warnings_into(warnings if warnings is not None else []):
+        return mujoco.MjModel.from_xml_string(text, dict(files))
 
 
 _last: tuple[bytes, dict[str, bytes], Any] | None = None
@@ -346,8 +340,9 @@ def step_with_energy(m: Any, d: Any, steps: int) -> tuple[PassiveRun, Exception 
 
 def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:
     """:func:`passive_second` of ``m`` in a thread of its own: MuJoCo releases the GIL
-    while it steps, so it costs no time beside Python work (the certificate's
-    other figures). ``m`` is the thread's until the result is in (its flags change)."""
+    while it steps, so it overlaps other work (validation's second, the certificate's
+    other figures) where a core is free. ``m`` is the thread's until the result is in
+    (its flags change)."""
     future: Future[PassiveRun] = Future()
     d = _data_copy(start)
 

@@ -46,9 +46,10 @@ class ValidateConfig:
     ``duration / max_steps`` (0.1 ms) simulates less than ``duration`` (said in a
     debug log), so a tiny ``<option timestep>`` cannot make validation run forever."""
     passive_second: bool = False
-    """Also step the certificate's passive second (:func:`~urdf2mjcf.mjmodel.passive_second`)
-    on a copy of the model, in a thread beside the second above: on two cores it costs
-    no time. What it finds is the certificate's to judge, not validation's."""
+    """Also step the certificate's passive second (:func:`~urdf2mjcf.mjmodel.passive_second`):
+    for a model without actuators it is the second above, stepped once with the energy
+    read; else a copy of the model steps it in a thread beside. What it finds is the
+    certificate's to judge, not validation's."""
 
 
 @dataclass(frozen=True)
