@@ -448,10 +448,7 @@ def body_from_link(ref: Reference, m: mujoco.MjModel, link: str, body: int) -> n
 
 
 def _zero_frames(ref: Reference) -> dict[str, np.ndarray]:
-    if "zero_frames" not in ref.memo:  # fixed joints only matter: any configuration
-        ref.memo["zero_frames"] = ref.frames(None)
-    frames: dict[str, np.ndarray] = ref.memo["zero_frames"]
-    return frames
+    return ref.frames(None)  # fixed joints only matter: any configuration
 
 
 def _placed_geoms(

@@ -69,6 +69,10 @@ class Reference:
         """Every link's 4x4 pose in the root link's frame at ``cfg`` (yourdfpy's
         actuated-joint order; None: all zeros), mimic joints following their leader."""
         q = np.zeros(len(self.actuated_joints)) if cfg is None else np.asarray(cfg, float)
+        # the sections ask for the same poses (zeros, home) more than once
+        memo = self.memo.setdefault("frames", {})
+        if q.tobytes() in memo:
+            return dict(memo[q.tobytes()])
         matrices = self._joint_matrices(q)
         # yourdfpy's joint transforms composed down the tree: what its scene graph's
         # get_transform returns, without building the graph (its update is half of
@@ -76,7 +80,10 @@ class Reference:
         out = {str(self.urdf.base_link): np.eye(4)}
         for parent, child, joint in self._tree_edges:
             out[child] = out[parent] @ matrices[joint]
-        return {name: out[name] for name in self.link_names if name in out}
+        for pose in out.values():
+            pose.flags.writeable = False  # shared by every section that asks
+        memo[q.tobytes()] = {name: out[name] for name in self.link_names if name in out}
+        return dict(memo[q.tobytes()])
 
     def _joint_matrices(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """Each joint's transform at ``q`` as yourdfpy's ``update_cfg`` computes it:
