@@ -274,16 +274,16 @@ def test_a_localize_step_or_relative_to_naming_what_is_not_there_is_refused(faci
         check_names(spec, WAYPOINTS, fac)
 
 
-def test_facility_demo_defaults_to_the_demo_written_for_the_facilitys_recipe():
-    """facility-demo without --waypoints: recipes/demo/<recipe name>.yaml when the
-    recipe has one (the compact layout), else the published demo."""
-    from urdf2mjcf.runner.cli import default_waypoints
+def test_a_facility_is_built_for_the_demo_written_for_its_recipe():
+    """make-facility bundles recipes/demo/<recipe name>.yaml when the recipe has one
+    (the compact layout), else the published demo; facility-demo replays that copy."""
+    from urdf2mjcf.bundle import demo_source
 
     demos = ROOT / "recipes" / "demo"
-    assert default_waypoints(ROOT, {"recipe": "imetro"}) == demos / "imetro.yaml"
-    assert default_waypoints(ROOT, {"recipe": "imetro-compact"}) == demos / "imetro-compact.yaml"
-    for other in ({"recipe": "imetro-two-hatches"}, {}, {"recipe": "../imetro-compact"}):
-        assert default_waypoints(ROOT, other) == WAYPOINTS, other
+    assert demo_source(ROOT, "imetro") == demos / "imetro.yaml"
+    assert demo_source(ROOT, "imetro-compact") == demos / "imetro-compact.yaml"
+    for other in ("imetro-two-hatches", "", "../imetro-compact"):
+        assert demo_source(ROOT, other) == WAYPOINTS, other
 
 
 def test_a_trial_line_says_how_far_off_the_robot_located_each_component():

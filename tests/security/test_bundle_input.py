@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 
 from tests.security.attack import assert_one_error, run, snapshot
+from urdf2mjcf.bundle import SCHEMA_VERSION
 
-MANIFEST = {"generator": "make-facility", "components": {}}
+MANIFEST = {"schema_version": SCHEMA_VERSION, "generator": "make-facility", "components": {}}
 
 
 def _bundle(tmp_path: Path, asset: str) -> Path:

@@ -3,11 +3,12 @@
 An environment never compiles xacro on reset: it loads a facility built by
 make-facility's Python API into a cache folder and randomizes the loaded model.
 The folder's name is a hash of everything the build depends on (the recipe's
-bytes, the package version, every file under the facility root's ``facility/``,
-``meshes/`` and ``recipes/``), so an edited xacro or mesh is another folder, never a
-stale one. ``facility.json`` is installed last by the build, so a folder holding it
-is complete. Processes building the same folder at once (pytest-xdist workers, a
-vector of environments) take turns on a lock file; the second one finds it built.
+bytes, the package version, the bundle's schema version, every file under the facility
+root's ``facility/``, ``meshes/`` and ``recipes/``), so an edited xacro or mesh, or a
+bundle format the runtime no longer reads, is another folder, never a stale one.
+``facility.json`` is installed last by the build, so a folder holding it is complete.
+Processes building the same folder at once (pytest-xdist workers, a vector of
+environments) take turns on a lock file; the second one finds it built.
 """
 
 from __future__ import annotations
@@ -19,9 +20,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from .. import __version__
+from ..bundle import MANIFEST, SCHEMA_VERSION
 from ..cache import default_cache_dir
 from ..facility.build import build_facility
-from ..facility.manifest import MANIFEST
 from ..facility.recipe import Recipe, load_recipe
 from ..facility.root import DATA_DIRS, find_root, recipe_file
 
@@ -35,9 +36,10 @@ builds = 0
 
 
 def _fingerprint(root: Path, recipe_path: Path) -> str:
-    """sha256 over the package version, the recipe's bytes and every data file's path
-    and bytes (a few hundred kB: hashing them is cheaper than one stale build)."""
-    h = hashlib.sha256(f"mjcf-forge {__version__}\n".encode())
+    """sha256 over the package version, the bundle schema, the recipe's bytes and every
+    data file's path and bytes (a few hundred kB: hashing them is cheaper than one stale
+    build)."""
+    h = hashlib.sha256(f"mjcf-forge {__version__} bundle {SCHEMA_VERSION}\n".encode())
     h.update(recipe_path.read_bytes())
     for sub in DATA_DIRS:
         for path in sorted((root / sub).rglob("*")):

@@ -8,6 +8,10 @@ folder is staged beside the target and moved in only when the build succeeded,
 so a failed build leaves the previous one intact. ``facility.json`` lists every
 file we wrote: a rebuild replaces those and keeps anything else in the folder
 (see ``urdf2mjcf.output``).
+
+The folder is a self-contained bundle (``urdf2mjcf.bundle``): it also holds the recipe
+as built (``recipe.yaml``) and the demo it was built for (``demo.yaml``), so the
+runtime replays and rebuilds it without the facility root's recipes.
 """
 
 from __future__ import annotations
@@ -16,8 +20,11 @@ import logging
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
-from .. import api
+import yaml
+
+from .. import api, bundle, untrusted
 from .. import output as out
 from ..errors import InputError
 from . import fiducials, fold
@@ -157,6 +164,7 @@ def build_facility(
         changed = folded is not None and bool(folded.moved or folded.merged)
         if placed or changed:  # the scene changed: compile what is written
             compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
+        demo = _write_copies(stage, recipe, root)
         data = manifest(
             stage / "scene.xml",
             recipe,
@@ -168,6 +176,7 @@ def build_facility(
             roles,
             compiled=compiled,  # the scene.xml written: validation's, or compiled after fold/tags
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
+            bundled={"recipe": bundle.RECIPE, "demo": demo},
         )
         if folded is not None and folded.moved:
             data[fold.MANIFEST_KEY] = folded.moved
@@ -182,6 +191,88 @@ def build_facility(
         conversion=report,
         components={k: output / v for k, v in built.items()},
     )
+
+
+RECIPE_HEADER = (
+    "# The recipe this facility was built from, as built: --set edits applied, the\n"
+    "# component table inline. Paths resolve beside this file, else under the facility\n"
+    "# root. Written by make-facility (facility-demo --trials rebuilds from it).\n"
+)
+
+
+def _plain(value: Any) -> Any:
+    """Recipe values as YAML's plain types: mappings as dicts, tuples as lists."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _component_data(comp: Component) -> dict:
+    """A component table entry: the fields that differ from their defaults."""
+    data: dict[str, Any] = {"asset": comp.asset, "standalone": comp.standalone}
+    for key, default in (("flag", None), ("prefix", ""), ("roles", None), ("free", False)):
+        if getattr(comp, key) != default:
+            data[key] = getattr(comp, key)
+    if comp.mechanisms is not None:
+        data["mechanisms"] = comp.mechanisms
+    if comp.fiducials:
+        data["fiducials"] = [
+            {"id": f.id, "link": f.link, "xyz": list(f.xyz), "rpy": list(f.rpy), "size": f.size}
+            for f in comp.fiducials
+        ]
+    return data
+
+
+def recipe_data(recipe: Recipe) -> dict:
+    """``recipe`` as the data of a recipe file that reads back to it (``parse_recipe``):
+    every section as parsed (defaults filled in), the component table inline."""
+    data: dict[str, Any] = {"name": recipe.name}
+    if recipe.description:
+        data["description"] = recipe.description
+    data["xacro"] = recipe.xacro
+    data["components"] = {n: _component_data(c) for n, c in recipe.components.items()}
+    data["flags"] = _plain(recipe.flags)
+    data["placements"] = {
+        n: {"xyz": list(p.xyz), "yaw": p.yaw} for n, p in recipe.placements.items()
+    }
+    data["jitter"] = {n: False if r is None else _plain(r) for n, r in recipe.jitter.items()}
+    data["simulation"] = _plain(recipe.simulation)
+    if recipe.actuator_config is not None:
+        data["actuator_config"] = recipe.actuator_config
+    data["gravcomp"] = recipe.gravcomp
+    if recipe.rocks:
+        data["rocks"] = _plain(recipe.rocks)
+    data["noise"] = _plain(recipe.noise)
+    return data
+
+
+def recipe_text(recipe: Recipe) -> str:
+    """The bundle's ``recipe.yaml``: :func:`recipe_data` as YAML (the same recipe, the
+    same bytes)."""
+    # leaf lists and mappings in flow style, as the recipes write them ([x, y, z])
+    body = yaml.safe_dump(
+        recipe_data(recipe), sort_keys=False, allow_unicode=True, width=100,
+        default_flow_style=None,
+    )
+    return RECIPE_HEADER + body
+
+
+def _write_copies(stage: Path, recipe: Recipe, root: Path) -> str | None:
+    """The bundle's copies: ``recipe.yaml`` always, ``demo.yaml`` (the demo file for
+    the recipe's name, else the published one: ``bundle.demo_source``) when the recipe
+    places the robot the demo drives. The demo's name in the bundle, or None."""
+    (stage / bundle.RECIPE).write_text(recipe_text(recipe), encoding="utf-8")
+    if not recipe.places(bundle.DEMO_ROBOT):
+        return None
+    source = bundle.demo_source(root, recipe.name)
+    if source is None:
+        log.info("no demo under %s for %s: the bundle holds none", root, recipe.name)
+        return None
+    # regular files only, within the YAML limit: a root given by --root is the user's
+    (stage / bundle.DEMO).write_bytes(untrusted.read_file(source, "yaml", what="demo file"))
+    return bundle.DEMO
 
 
 def _roles(

@@ -5,6 +5,7 @@ runner will use), plus the recipe, the seed and the poses it produced. No
 timestamps or absolute paths: two builds with the same seed are identical.
 ``"generator": "make-facility"`` and ``"files"`` (every file the build wrote)
 mark the folder as ours: a rebuild replaces exactly those files.
+``"schema_version"`` (``urdf2mjcf.bundle``) is the bundle format the runtime reads.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .. import output
+from ..bundle import BUNDLE_KEY, MANIFEST, SCHEMA_VERSION
 from ..errors import InputError
 from .recipe import Pose2D, Recipe
 from .values import number
@@ -21,7 +23,6 @@ from .values import number
 if TYPE_CHECKING:
     import mujoco
 
-MANIFEST = "facility.json"
 GENERATOR = "make-facility"
 
 _JOINT_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -185,10 +186,12 @@ def manifest(
     roles: dict[str, dict] | None = None,
     compiled: Any = None,
     fiducials: list[dict] | None = None,
+    bundled: dict[str, str | None] | None = None,
 ) -> dict:
     """``compiled``: the model of ``scene`` the conversion validated, so it is not
     compiled again (None: compiled here); ``fiducials``: the tags the build added
-    (``urdf2mjcf.facility.fiducials.manifest_entries``)."""
+    (``urdf2mjcf.facility.fiducials.manifest_entries``); ``bundled``: the copies the
+    bundle holds, ``{"recipe": name, "demo": name or None}`` (names in the bundle)."""
     import mujoco
 
     m = compiled if compiled is not None else mujoco.MjModel.from_xml_path(str(scene))
@@ -245,9 +248,11 @@ def manifest(
         except ValueError:
             recipe_file = Path(recipe.path).name
     return {
+        "schema_version": SCHEMA_VERSION,
         "generator": GENERATOR,
         "recipe": recipe.name,
         "recipe_file": recipe_file,
+        BUNDLE_KEY: dict(bundled or {}),
         "xacro": recipe.xacro,
         "seed": seed,
         "flags": dict(recipe.flags),

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..bundle import MANIFEST
 from ..cli_types import BoundedInt
 from ..facility.values import SEED_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
@@ -64,26 +65,14 @@ def _frames_folder(
         out.install_folder(stage, frames, previous, overwrite=overwrite, last=FRAMES_MANIFEST)
 
 
-def default_waypoints(root: Path, manifest: dict) -> Path:
-    """The demo written for the facility's recipe (``recipes/demo/<recipe name>.yaml``,
-    e.g. the compact layout's), else the published one (``recipes/demo/imetro.yaml``)."""
-    demos = root / "recipes" / "demo"
-    name = manifest.get("recipe")
-    if isinstance(name, str) and name and "/" not in name and "\\" not in name:
-        own = demos / f"{name}.yaml"
-        if own.is_file():
-            return own
-    return demos / "imetro.yaml"
-
-
 @click.command("facility-demo", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("scene", type=click.Path(exists=True, path_type=Path))
 @click.option(
     "--waypoints",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     default=None,
-    help="demo file (default: recipes/demo/<the facility's recipe name>.yaml of the facility "
-    "root when there is one, else recipes/demo/imetro.yaml)",
+    help="demo file (default: the facility's own copy, demo.yaml, which make-facility "
+    "bundles: recipes/demo/<recipe name>.yaml, else recipes/demo/imetro.yaml)",
 )
 @click.option(
     "--trials",
@@ -102,7 +91,7 @@ def default_waypoints(root: Path, manifest: dict) -> Path:
     "--recipe",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     default=None,
-    help="recipe rebuilt per trial (default: the one in facility.json)",
+    help="recipe rebuilt per trial (default: the facility's own copy, recipe.yaml)",
 )
 @click.option(
     "--report",
@@ -166,9 +155,7 @@ def facility_demo_command(
 
     headless.configure()
     from .. import output as out
-    from ..facility.recipe import load_recipe
-    from ..facility.root import find_root
-    from .load import load
+    from .load import LoadError, bundled_file, load
     from .waypoints import check_names, read_waypoints
 
     # Everything the user gave is checked before anything runs or is written.
@@ -179,9 +166,16 @@ def facility_demo_command(
     trials = trials or 0
     spec = read_waypoints(waypoints) if waypoints else None  # a file given: before the facility
     fac = load(scene)
-    root = find_root()  # a checkout here or above, else the installed data
+    # Only the bundle: the demo it was built for (make-facility copied it in).
     if spec is None or waypoints is None:
-        waypoints = default_waypoints(root, fac.manifest)
+        waypoints = bundled_file(fac.folder, fac.manifest, "demo")
+        if waypoints is None:
+            raise LoadError(
+                "the facility was built without a demo (its recipe places no robot); "
+                "give --waypoints FILE",
+                file=fac.folder / MANIFEST,
+                element="bundle.demo",
+            )
         spec = read_waypoints(waypoints)
     check_names(spec, waypoints, fac)
     if report:
@@ -207,10 +201,14 @@ def facility_demo_command(
         check_recording(record, overwrite, GENERATOR)
         out.check_not_dangling(record, overwrite)
     previous = out.check_folder(frames, overwrite, FRAMES_MANIFEST, GENERATOR) if frames else []
-    trial_recipe = None
+    trial_recipe = root = None
     if trials:
-        trial_recipe = recipe or root / (fac.manifest.get("recipe_file") or "recipes/imetro.yaml")
-        load_recipe(trial_recipe)  # here, not in each trial's process
+        from .trials import check_recipe
+
+        trial_recipe = recipe or bundled_file(fac.folder, fac.manifest, "recipe")
+        if trial_recipe is None:
+            raise LoadError("names no recipe", file=fac.folder / MANIFEST, element="bundle.recipe")
+        root = check_recipe(trial_recipe)  # here, not in each trial's process
     with contextlib.ExitStack() as files:
         # All or nothing: the report, plot and recording files are made now (a folder we
         # cannot write in fails before the run), written when it ends, and renamed only
@@ -220,7 +218,7 @@ def facility_demo_command(
         plot_to = reserve(plot_path(report)) if report and trials else None
         record_to = reserve(record) if record else None
         with _frames_folder(frames, previous, overwrite) as staged:
-            if trial_recipe is not None:
+            if trial_recipe is not None and root is not None:
                 run = TrialRun(trial_recipe, root, waypoints, workers, executor, address, scene)
                 result, success = _trials(run, seed, trials, staged)
             else:

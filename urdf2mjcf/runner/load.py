@@ -1,9 +1,11 @@
 """Load a built facility: the compiled scene and its manifest, with the robot's
-roles resolved to MuJoCo ids (joints, actuators, sensors, cameras, sites)."""
+roles resolved to MuJoCo ids (joints, actuators, sensors, cameras, sites).
+
+Only the bundle is read (``urdf2mjcf.bundle``: its files and the manifest's schema
+version), never a facility root or a recipe of a checkout."""
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -13,11 +15,9 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .. import untrusted
+from .. import bundle, untrusted
+from ..bundle import MANIFEST
 from ..errors import FacilityError
-from ..facility.manifest import MANIFEST
-
-SCENE = "scene.xml"
 
 
 class LoadError(FacilityError):
@@ -43,40 +43,19 @@ def lookup(
 def facility_files(path: str | Path) -> tuple[Path, Path]:
     """``(scene.xml, facility.json)`` of a built facility given as its folder or a scene
     file; a LoadError naming the path when it is not one."""
-    path = Path(path)
-    if path.is_dir():
-        scene = path / SCENE
-        if not scene.is_file():
-            raise LoadError(
-                f"no {SCENE}: not a facility folder (build one with make-facility)", file=path
-            )
-    elif not path.exists():
-        raise LoadError("does not exist", file=path)
-    elif path.suffix.lower() != ".xml":
-        raise LoadError("not a facility: give its folder or its scene.xml", file=path)
-    else:
-        scene = path
-    manifest = scene.parent / MANIFEST
-    if not manifest.is_file():
-        raise LoadError(
-            f"not a facility built by make-facility: no {MANIFEST} beside it", file=scene
-        )
-    return scene, manifest
+    return bundle.facility_files(path, error=LoadError)
 
 
 def read_manifest(path: Path) -> dict:
-    """A facility.json as a dict with a ``components`` mapping; LoadError otherwise."""
-    raw = untrusted.read_file(path, "report", error=LoadError, what="manifest")
-    try:
-        data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else "not JSON"
-        raise LoadError(f"not a manifest of make-facility: {reason}", file=path) from None
-    if not isinstance(data, dict) or not isinstance(data.get("components"), dict):
-        raise LoadError(
-            "not a manifest of make-facility (no components)", file=path, element="components"
-        )
-    return data
+    """A facility.json of this schema version as a dict with a ``components`` mapping;
+    LoadError otherwise (``urdf2mjcf.bundle.read_manifest``)."""
+    return bundle.read_manifest(path, error=LoadError)
+
+
+def bundled_file(folder: Path, manifest: dict, key: str) -> Path | None:
+    """The bundle's copy ``key`` (``"demo"``, ``"recipe"``) that facility.json names, or
+    None when the bundle has none; a LoadError naming facility.json otherwise."""
+    return bundle.bundled_file(folder, manifest, key, folder / MANIFEST, error=LoadError)
 
 
 # MJCF attributes naming a file MuJoCo opens itself (a cube map texture has six)

@@ -7,7 +7,12 @@ cluster), one job per seed. A trial depends only on its seed and its inputs,
 never on the worker that ran it: it builds into a folder of its own, the caches
 it shares with other workers are written atomically (``urdf2mjcf.cache``), and
 its pictures come back as bytes for the caller to write, so a worker on another
-machine needs no shared folder for its output."""
+machine needs no shared folder for its output.
+
+Trials sit above both the builder (``urdf2mjcf.facility``) and the runtime: they are the
+one part of the runner that rebuilds facilities, so the one that needs the facility
+data (a checkout, or the data installed with the package: ``facility.root.find_root``).
+The recipe they rebuild is the bundle's own copy (``recipe.yaml``) unless one is given."""
 
 from __future__ import annotations
 
@@ -33,6 +38,34 @@ class TrialJob:
     """Whether to save the demo's pictures (returned as bytes under ``"frames"``)."""
 
 
+def check_recipe(path: Path) -> Path:
+    """The facility root the trials rebuild ``path`` from, after checking the recipe and
+    that the files it names are there: an InputError naming the recipe (and the key)
+    before any trial starts, not one failed trial per seed. A bundle's copy names its
+    recipe's own files (beside the original) by the same relative paths: those are not
+    in the bundle, so such a recipe must be given again (``--recipe``)."""
+    from ..errors import InputError
+    from ..facility.recipe import load_recipe
+    from ..facility.root import data_path, find_root
+
+    root = find_root()  # a checkout at or above the current folder, else the installed data
+    recipe = load_recipe(Path(path), root=root)
+    named = [("xacro", recipe.xacro), ("actuator_config", recipe.actuator_config)]
+    for name, comp in recipe.components.items():
+        if recipe.places(name):
+            named += [(f"components.{name}.roles", comp.roles)]
+            named += [(f"components.{name}.mechanisms", comp.mechanisms)]
+    for key, rel in named:
+        if rel is not None and not data_path(root, recipe.path, rel).is_file():
+            raise InputError(
+                f"'{rel}' is neither beside the recipe nor under the facility root {root} "
+                "(a recipe's own files are not in a bundle: give --recipe the original)",
+                file=path,
+                element=key,
+            )
+    return root
+
+
 def run_trial(job: TrialJob) -> dict:
     """The demo's result (``DemoResult.to_json()``) for one seed, with ``seed``, the jitter
     ``offsets``, the demo's ``log``, ``trial_wall`` (build and demo, seconds) and
@@ -56,7 +89,7 @@ def run_trial(job: TrialJob) -> dict:
         offsets = None
         try:
             rep = build_facility(
-                load_recipe(Path(job.recipe)),
+                load_recipe(Path(job.recipe), root=Path(job.root)),
                 Path(tmp) / "facility",
                 root=Path(job.root),
                 seed=job.seed,
