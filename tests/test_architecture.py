@@ -1,15 +1,19 @@
 """The layout the architecture doc promises is the layout of the package.
 
-Two checks, both read from the source tree itself: every module of
+Three checks, all read from the source tree itself: every module of
 ``urdf2mjcf/`` is listed in docs/architecture.md's module table (and every
-listed module exists), and imports point one way:
-support modules -> passes -> api (and the certificate) -> facility -> runner -> envs -> cli.
+listed module exists); imports point one way between layers:
+support modules -> passes -> api (and the certificate) -> facility -> runner -> envs -> cli;
+and no module imports, directly or through others, one that imports it back (no
+circle, in a layer either). Every import counts: at module level, inside a function,
+under ``if TYPE_CHECKING:``.
 """
 
 from __future__ import annotations
 
 import ast
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 import pytest
@@ -22,11 +26,11 @@ DOC = ROOT / "docs" / "architecture.md"
 LAYERS = ("support", "passes", "api", "facility", "runner", "envs", "cli")
 
 
-def _modules() -> dict[str, Path]:
+def _modules(package: Path = PACKAGE) -> dict[str, Path]:
     """Dotted module name -> file, for every module of the package."""
     out = {}
-    for path in sorted(PACKAGE.rglob("*.py")):
-        parts = path.relative_to(ROOT).with_suffix("").parts
+    for path in sorted(package.rglob("*.py")):
+        parts = path.relative_to(package.parent).with_suffix("").parts
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         out[name] = path
     return out
@@ -43,14 +47,17 @@ def _layer(module: str) -> str:
         return "api"
     if head == "certify":  # the certificate runs after the passes, beside api; verify is a command
         return "cli" if parts[-1] == "command" else "api"
-    if head in ("cli", "__main__", "batch"):  # batch: a command over api and executors
+    if head in ("cli", "cli_common", "__main__", "batch"):  # batch: a command over api, executors
         return "cli"
     return "support"
 
 
-def _imports(module: str, path: Path) -> set[str]:
-    """Modules of the package that ``module`` imports (relative imports resolved)."""
+def _imports(module: str, path: Path, modules: Iterable[str] = ()) -> set[str]:
+    """Modules of the package that ``module`` imports (relative imports resolved), anywhere
+    in its file. With ``modules`` (every module of the package), ``from p import name``
+    is module ``p.name`` when there is one, else ``p``, whose ``__init__`` defines name."""
     package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    known = set(modules)
     found = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):
@@ -61,11 +68,69 @@ def _imports(module: str, path: Path) -> set[str]:
                 target = node.module or ""
             if target.split(".")[0] != "urdf2mjcf":
                 continue
-            # `from . import x` imports module x; `from .m import name` imports module m
-            found.update(f"{target}.{a.name}" if not node.module else target for a in node.names)
+            for a in node.names:
+                sub = f"{target}.{a.name}"
+                if known:
+                    found.add(sub if sub in known else target)
+                else:  # `from . import x` imports module x; `from .m import name`, module m
+                    found.add(target if node.module else sub)
         elif isinstance(node, ast.Import):
             found.update(a.name for a in node.names if a.name.split(".")[0] == "urdf2mjcf")
     return found
+
+
+def _graph(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """Module -> the modules of the package it imports."""
+    return {m: _imports(m, path, modules) & (set(modules) - {m}) for m, path in modules.items()}
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """One import circle ``[a, b, ..., a]`` (each imports the next) for every group of
+    modules that import each other (a strongly connected component, Tarjan's algorithm),
+    the shortest through the group's first module by name."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    groups: list[set[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = set()
+            while True:
+                w = stack.pop()
+                group.add(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                groups.append(group)
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    circles = []
+    for group in groups:
+        start = min(group)
+        came_from: dict[str, str] = {}
+        queue = [start]
+        while queue and start not in came_from:
+            v = queue.pop(0)
+            for w in sorted(graph[v] & group):
+                if w not in came_from:
+                    came_from[w] = v
+                    queue.append(w)
+        path = [start]
+        while path[-1] != start or len(path) == 1:
+            path.append(came_from[path[-1]])
+        circles.append(path[::-1])
+    return sorted(circles)
 
 
 def test_every_module_is_in_the_architecture_doc_and_every_listed_one_exists():
@@ -78,9 +143,10 @@ def test_every_module_is_in_the_architecture_doc_and_every_listed_one_exists():
 
 @pytest.mark.parametrize("module", sorted(_modules()))
 def test_imports_point_one_way(module):
-    path = _modules()[module]
+    modules = _modules()
     mine = LAYERS.index(_layer(module))
-    upward = sorted(t for t in _imports(module, path) if LAYERS.index(_layer(t)) > mine)
+    found = _imports(module, modules[module], modules)
+    upward = sorted(t for t in found if LAYERS.index(_layer(t)) > mine)
     assert upward == [], f"{module} ({LAYERS[mine]}) imports from a higher layer: {upward}"
 
 
@@ -92,6 +158,44 @@ def test_the_layering_check_catches_an_upward_import(tmp_path):
     targets = _imports("urdf2mjcf.passes.bad", fake)
     assert targets == {"urdf2mjcf.api"}
     assert LAYERS.index(_layer("urdf2mjcf.api")) > LAYERS.index(_layer("urdf2mjcf.passes.bad"))
+
+
+def test_no_module_imports_one_that_imports_it_back():
+    circles = _circles(_graph(_modules()))
+    assert circles == [], "import circles (each module imports the next):\n" + "\n".join(
+        " -> ".join(c) for c in circles
+    )
+
+
+def test_the_circle_check_catches_a_planted_circle(tmp_path):
+    # Two circles the check must find: one through an import inside a function, one in
+    # a layer through `from . import name` and a TYPE_CHECKING import. A module that
+    # only imports a circle's module is in none.
+    package = tmp_path / "urdf2mjcf"
+    files = {
+        "__init__.py": "",
+        "errors.py": "class ConversionError(Exception):\n    pass\n",
+        "ir.py": "from .errors import ConversionError\nfrom .fmt import f\n",
+        "fmt.py": "def f():\n    from .ir import Model\n",
+        "api.py": "from .ir import Model\n",
+        "runner/__init__.py": "",
+        "runner/a.py": "from . import b\n",
+        "runner/b.py": (
+            "from typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from .c import Thing\n"
+        ),
+        "runner/c.py": "from ..runner import a\n\nThing = int\n",
+        "runner/d.py": "from .a import x\n",
+    }
+    for name, text in files.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text)
+    in_layer = ["urdf2mjcf.runner.a", "urdf2mjcf.runner.b", "urdf2mjcf.runner.c"]
+    assert _circles(_graph(_modules(package))) == [
+        ["urdf2mjcf.fmt", "urdf2mjcf.ir", "urdf2mjcf.fmt"],
+        [*in_layer, "urdf2mjcf.runner.a"],
+    ]
+    (package / "fmt.py").write_text("def f():\n    pass\n")  # the fix: that circle is gone
+    assert _circles(_graph(_modules(package))) == [[*in_layer, "urdf2mjcf.runner.a"]]
 
 
 def test_the_generic_facility_builder_names_none_of_our_components():

@@ -26,7 +26,6 @@ top-level ``.xacro`` file explicitly.
 
 from __future__ import annotations
 
-import copy
 import os
 import tempfile
 import time
@@ -38,6 +37,7 @@ from typing import Any
 import click
 
 from . import output as out
+from .cli_common import pairs, shared_params
 from .cli_types import BoundedInt
 from .errors import ConversionError, InputError
 from .runner.executors import EXECUTORS, Kind, import_ray, run_jobs
@@ -246,44 +246,12 @@ def run_batch(
 
 # -- the command -------------------------------------------------------------------------
 
-SHARED_OPTIONS = (
-    "package_path",
-    "packages",
-    "no_ros_env",
-    "density",
-    "collision_source",
-    "actuator_config",
-    "gravcomp",
-    "no_joint_sensors",
-    "no_mujoco_extension",
-    "fuse_fixed",
-    "floating_base",
-    "no_scene",
-    "strict",
-    "trust_xacro",
-    "no_validate",
-    "cache_dir",
-    "no_cache",
-    "decompose_timeout",
-    "max_faces",
-)
-"""The converter's options that apply to every robot of a batch (same help, same defaults)."""
-
-
-def _shared_params() -> list[click.Parameter]:
-    from .cli import urdf2mjcf_command
-
-    by_name = {p.name: p for p in urdf2mjcf_command.params}
-    return [copy.copy(by_name[name]) for name in SHARED_OPTIONS]
-
 
 def _options(kw: dict[str, Any]) -> dict[str, Any]:
     """The converter's click values -> keyword options of ``api.make_options``."""
-    from .cli import _pairs
-
     return {
         "package_paths": list(kw["package_path"]),
-        "packages": _pairs(kw["packages"], "=", "NAME=DIR"),
+        "packages": pairs(kw["packages"], "=", "NAME=DIR"),
         "use_environment": not kw["no_ros_env"],
         "density": kw["density"],
         "collision_source": kw["collision_source"],
@@ -395,7 +363,7 @@ def _make_command() -> click.Command:
             "(its other files are kept).",
         ),
         click.Option(["-q", "--quiet"], is_flag=True, help="No progress lines."),
-        *_shared_params(),
+        *shared_params(),  # the converter's options that apply to every robot
     ]
     return click.Command(
         "urdf2mjcf batch",

@@ -17,30 +17,15 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from . import headless
+from . import extras, headless
+from .cli_common import DENSITY, configure_logging, pairs, shared_option
 from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .errors import ConversionError
 from .ir import Note
-from .passes.collision import CollisionConfig
-from .passes.inertia import InertiaConfig
-from .passes.meshes import MeshConfig
 from .untrusted import printable
 
 if TYPE_CHECKING:
     from .certify import Certificate
-
-DENSITY = FiniteFloat(0.0, 1e6, low_open=True)
-"""kg/m^3: above 0 (nothing is massless by density), at most 1e6 (osmium is 2.3e4)."""
-
-
-def _configure_logging(verbose: int, quiet: bool) -> None:
-    level = (
-        logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
-    )
-    logging.basicConfig(
-        level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
-    )
-
 
 class _Progress:
     """A click progress bar that appears only when there is long work."""
@@ -80,16 +65,6 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
             click.echo(line, err=True)
 
 
-def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
-    out = {}
-    for item in values:
-        name, found, value = item.partition(sep)
-        if not found or not name:
-            raise click.BadParameter(f"'{item}' is not {what}")
-        out[name] = value
-    return out
-
-
 @click.command("urdf2mjcf", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
@@ -100,27 +75,10 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     type=click.Path(path_type=Path, dir_okay=False),
     help="MJCF file to write; meshes go to assets/ beside it.",
 )
-@click.option(
-    "--package-path",
-    multiple=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder whose sub-folders are ROS packages (repeatable).",
-)
-@click.option(
-    "--package",
-    "packages",
-    multiple=True,
-    metavar="NAME=DIR",
-    help="Location of one package (repeatable).",
-)
-@click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
-@click.option(
-    "--density",
-    type=DENSITY,
-    default=InertiaConfig.density,
-    show_default=True,
-    help="kg/m^3 for links with geometry but no inertial.",
-)
+@shared_option("package_path")
+@shared_option("packages")
+@shared_option("no_ros_env")
+@shared_option("density")
 @click.option(
     "--link-density",
     multiple=True,
@@ -128,46 +86,19 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     metavar="LINK=KG_PER_M3",
     help="Per-link density override (repeatable).",
 )
-@click.option(
-    "--collision",
-    "collision_source",
-    type=click.Choice(["collision", "visual", "none"]),
-    default="collision",
-    show_default=True,
-    help="Where collision geometry comes from.",
-)
-@click.option(
-    "--actuator-config",
-    type=click.Path(path_type=Path, dir_okay=False),
-    help="YAML file mapping joint-name patterns to actuators, gains and classes.",
-)
-@click.option("--gravcomp", is_flag=True, help="Gravity compensation on every link a joint moves.")
-@click.option("--no-joint-sensors", is_flag=True, help="No joint sensors for actuated joints.")
-@click.option("--no-mujoco-extension", is_flag=True, help="Ignore <mujoco> elements in the URDF.")
-@click.option(
-    "--fuse-fixed",
-    is_flag=True,
-    help="Merge links on fixed joints into their parent (each leaves a site).",
-)
-@click.option("--floating-base", is_flag=True, help="Give the root link a free joint.")
+@shared_option("collision_source")
+@shared_option("actuator_config")
+@shared_option("gravcomp")
+@shared_option("no_joint_sensors")
+@shared_option("no_mujoco_extension")
+@shared_option("fuse_fixed")
+@shared_option("floating_base")
 @click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
-@click.option("--no-scene", is_flag=True, help="Do not write scene.xml.")
+@shared_option("no_scene")
 @click.option("--overwrite", is_flag=True, help="Replace existing output files.")
-@click.option(
-    "--strict",
-    is_flag=True,
-    help="A missing or unreadable mesh (visual or collision) is an error, not a warning "
-    "that drops it.",
-)
-@click.option(
-    "--trust-xacro",
-    is_flag=True,
-    help="Run the description's code, as ROS's xacro does (expressions are otherwise "
-    "checked: see docs/security.md)",
-)
-@click.option(
-    "--no-validate", is_flag=True, help="Skip compiling and stepping the result in MuJoCo."
-)
+@shared_option("strict")
+@shared_option("trust_xacro")
+@shared_option("no_validate")
 @click.option(
     "--verify",
     is_flag=True,
@@ -182,12 +113,8 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     metavar="NAME=VALUE",
     help="Change one of the certificate's tolerances (repeatable; the names: docs/cli.md).",
 )
-@click.option(
-    "--cache-dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Cache folder: loaded meshes and convex decompositions (see 'urdf2mjcf cache info').",
-)
-@click.option("--no-cache", is_flag=True, help="Neither read nor write the cache.")
+@shared_option("cache_dir")
+@shared_option("no_cache")
 @click.option(
     "-j",
     "--jobs",
@@ -195,21 +122,8 @@ def _pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     default=0,
     help="Parallel decompositions (0 = one per CPU; at most 1024).",
 )
-@click.option(
-    "--decompose-timeout",
-    type=FiniteFloat(0, 1e6),
-    default=CollisionConfig.timeout,
-    show_default=True,
-    help="Seconds one mesh's convex decomposition may take (0 = no limit); "
-    "past it the mesh gets its convex hull, with a warning.",
-)
-@click.option(
-    "--max-faces",
-    type=BoundedInt(4, 10_000_000),
-    default=MeshConfig.max_faces,
-    show_default=True,
-    help="Decimate meshes above this face count (4 to 10,000,000).",
-)
+@shared_option("decompose_timeout")
+@shared_option("max_faces")
 @click.option(
     "--report",
     "report_path",
@@ -264,7 +178,7 @@ def urdf2mjcf_command(
     from .certify import CertificateFailed
     from .certify.tolerances import Tolerances
 
-    _configure_logging(verbose, quiet)
+    configure_logging(verbose, quiet)
     if report_path:
         if report_path.resolve() == Path(output).resolve():
             raise click.BadParameter("is the MJCF output file", param_hint="--report")
@@ -280,9 +194,9 @@ def urdf2mjcf_command(
         out.together() as batch,
     ):
         options = api.make_options(
-            args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
+            args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
             package_paths=package_path,
-            packages=_pairs(packages, "=", "NAME=DIR"),
+            packages=pairs(packages, "=", "NAME=DIR"),
             use_environment=not no_ros_env,
             density=density,
             link_density=densities,
@@ -660,11 +574,11 @@ def make_facility_command(
     from .facility import root as facility_root
     from .facility.recipe import load_recipe
 
-    _configure_logging(verbose, quiet)
+    configure_logging(verbose, quiet)
     with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
         root = facility_root.find_root(root)
         recipe_path = facility_root.recipe_file(root, recipe, DEFAULT_RECIPE)
-        parsed = load_recipe(recipe_path, _pairs(sets, "=", "KEY=VALUE"), root)
+        parsed = load_recipe(recipe_path, pairs(sets, "=", "KEY=VALUE"), root)
         # The demo drives the component named robot (its roles): say so before building.
         if demo and not parsed.places("robot"):
             raise ConversionError(
@@ -672,6 +586,11 @@ def make_facility_command(
                 file=recipe_path,
                 element="--demo",
             )
+        # Before building: the demo needs the whole sim extra, a recipe's AprilTags its cv2.
+        if demo:
+            extras.require("sim", "make-facility --demo")
+        elif any(c.fiducials for n, c in parsed.components.items() if parsed.places(n)):
+            extras.require("sim", "drawing the recipe's AprilTags (fiducials)", ("cv2",))
         out = Path(output) if output else facility_root.default_output(root, parsed.name)
         report = facility_build.build_facility(
             parsed,
@@ -707,7 +626,7 @@ def facility_demo_main() -> None:
     headless.configure()
     from .runner.cli import facility_demo_command
 
-    run_command(facility_demo_command)
+    run_command(extras.requiring("sim", facility_demo_command))
 
 
 def rover_drive_main() -> None:

@@ -231,7 +231,8 @@ def test_a_users_own_component_carries_tags_the_builder_knows_nothing_about(
     """The user's crate (a free body of their own) with a tag on its lid: placed,
     listed and found by the localizer from above, under the crate's own jitter."""
     from tests.facility import test_own_facility as own
-    from urdf2mjcf.runner.localize import CameraModel, camera_pose, localize
+    from urdf2mjcf.runner.camera import CameraModel
+    from urdf2mjcf.runner.localize import camera_pose, localize
 
     tag = "  fiducials:\n    - {id: 7, link: crate, xyz: [0, 0, 0.102], rpy: [0, 0, 0.3], size: 0.08}\n"
     recipe = load_recipe(own._lab(tmp_path / "lab", table=own.TABLE + tag), root=ROOT)

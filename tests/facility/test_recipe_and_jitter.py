@@ -10,7 +10,8 @@ import pytest
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility.build import xacro_args
 from urdf2mjcf.facility.jitter import jittered
-from urdf2mjcf.facility.recipe import Pose2D, load_recipe
+from urdf2mjcf.facility.pose import Pose2D
+from urdf2mjcf.facility.recipe import load_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
 RECIPES = sorted((ROOT / "recipes").glob("*.yaml"))

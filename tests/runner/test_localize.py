@@ -16,8 +16,8 @@ import pytest
 
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
+from urdf2mjcf.runner.camera import CameraModel
 from urdf2mjcf.runner.localize import (
-    CameraModel,
     camera_pose,
     detect,
     localization_record,

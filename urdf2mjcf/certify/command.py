@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from ..cli import _configure_logging, _pairs
+from ..cli_common import configure_logging, pairs
 from ..cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from ..errors import InputError
 from ..untrusted import printable
@@ -156,7 +156,7 @@ def verify_command(
     from .reference import load
     from .tolerances import Tolerances
 
-    _configure_logging(verbose, quiet)
+    configure_logging(verbose, quiet)
     tol = Tolerances().with_values(tolerances)
     names = load_name_map(name_map) if name_map else NameMap()
     if report_path:
@@ -164,9 +164,9 @@ def verify_command(
             raise click.BadParameter("is an input file", param_hint="--report")
         out.check_file(report_path, False, GENERATOR)
     options = api.make_options(
-        args=_pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
+        args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
         package_paths=package_path,
-        packages=_pairs(packages, "=", "NAME=DIR"),
+        packages=pairs(packages, "=", "NAME=DIR"),
         use_environment=not no_ros_env,
         trust_xacro=True if trust_xacro else None,
     )

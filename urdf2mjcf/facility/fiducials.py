@@ -38,13 +38,13 @@ from ..errors import InputError
 from ..fmt import fmt_vec
 from ..transforms import quat_from_rpy, rpy_to_matrix
 from ..untrusted import excerpt
+from .pose import Pose2D
 from .values import ANGLE_MAX, number
 
 if TYPE_CHECKING:
     import mujoco
 
     from ..schema import Source
-    from .recipe import Pose2D
 
 FAMILY = "tag36h11"
 TAG_COUNT = 587
@@ -141,6 +141,9 @@ def check_unique(
 
 def tag_image(tag_id: int, cell_px: int = CELL_PX) -> np.ndarray:
     """The printed tag, white border included: (10 * cell_px) square, uint8 grey."""
+    from ..extras import require
+
+    require("sim", "drawing AprilTags", ("cv2",))  # one error line, not a traceback
     import cv2
 
     dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
@@ -151,6 +154,9 @@ def tag_image(tag_id: int, cell_px: int = CELL_PX) -> np.ndarray:
 
 def tag_png(tag_id: int) -> bytes:
     """The printed tag as PNG bytes (deterministic: same id, same bytes)."""
+    from ..extras import require
+
+    require("sim", "drawing AprilTags", ("cv2",))  # one error line, not a traceback
     import cv2
 
     ok, data = cv2.imencode(".png", tag_image(tag_id))

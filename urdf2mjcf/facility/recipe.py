@@ -46,6 +46,7 @@ from ..schema import Source, load
 from ..untrusted import excerpt, is_folder_name
 from .fiducials import Fiducial, check_unique, parse_fiducials
 from .noise import parse_noise
+from .pose import Pose2D
 from .root import data_path
 from .scatter import parse_rocks
 from .values import (
@@ -92,14 +93,6 @@ SIMULATION_CHOICES = {
     "solver": ("PGS", "CG", "Newton"),
     "cone": ("pyramidal", "elliptic"),
 }
-
-
-@dataclass(frozen=True)
-class Pose2D:
-    """A pose on the floor: position (m) and yaw about +z (rad)."""
-
-    xyz: tuple[float, float, float]
-    yaw: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from .perception import pinhole_focal
+from .camera import CameraModel
 
 if TYPE_CHECKING:
     import mujoco
@@ -36,35 +36,6 @@ if TYPE_CHECKING:
 
 MJ_TO_CV = np.diag([1.0, -1.0, -1.0])
 """A MuJoCo camera frame's axes -> OpenCV's (and back: it is its own inverse)."""
-
-
-@dataclass(frozen=True)
-class CameraModel:
-    """A pinhole camera without distortion, as MuJoCo renders: square pixels, the
-    principal point at the image centre."""
-
-    width: int
-    height: int
-    fovy_deg: float
-    """Vertical field of view (MuJoCo's ``fovy``), degrees."""
-
-    @property
-    def focal(self) -> float:
-        """Focal length in pixels (fx = fy)."""
-        return pinhole_focal(self.height, self.fovy_deg)
-
-    def matrix(self) -> np.ndarray:
-        """(3, 3) OpenCV camera matrix."""
-        f = self.focal
-        return np.array(
-            [[f, 0.0, (self.width - 1) / 2], [0.0, f, (self.height - 1) / 2], [0.0, 0.0, 1.0]]
-        )
-
-    @classmethod
-    def from_manifest(cls, camera: Mapping[str, Any]) -> CameraModel:
-        """From a ``facility.json`` camera entry (``resolution`` [w, h], ``fovy``)."""
-        w, h = camera["resolution"]
-        return cls(int(w), int(h), float(camera["fovy"]))
 
 
 @dataclass(frozen=True)
@@ -212,7 +183,7 @@ def _depth_points(
     ok = np.isfinite(z) & (z > 0)
     us, vs, z = us[ok], vs[ok], z[ok]
     f = camera.focal
-    cx, cy = (camera.width - 1) / 2, (camera.height - 1) / 2
+    cx, cy = camera.principal_point
     return np.column_stack([(us - cx) / f * z, (vs - cy) / f * z, z])
 
 
@@ -377,7 +348,7 @@ def locate(camera: Camera, d: mujoco.MjData, manifest: Mapping[str, Any]) -> dic
     kinematics (the camera rides on the robot); no component pose is read."""
     rgb, depth = camera.rgbd(d)
     h, w = camera.size
-    model = CameraModel(w, h, float(camera.m.cam_fovy[camera.cam]))
+    model = CameraModel.of(camera.m, camera.cam, w, h)
     pose = camera_pose(d.cam_xpos[camera.cam], d.cam_xmat[camera.cam])
     return localize(rgb, depth, model, pose, manifest.get("fiducials") or [])
 

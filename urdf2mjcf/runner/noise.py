@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .camera import pinhole_focal
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -88,8 +90,6 @@ class SensorNoise:
         fovy = fovy_deg if fovy_deg is not None else self.fovy_deg
         if fovy is None:
             raise ValueError("depth noise needs a focal length: give fovy_deg or focal_px")
-        from .perception import pinhole_focal  # perception imports this module
-
         return pinhole_focal(height, fovy)
 
     def depth_std(self, z: np.ndarray | float, height: int, fovy_deg: float | None = None) -> Any:

@@ -3,7 +3,7 @@
 Render RGB and depth headlessly (call :func:`urdf2mjcf.headless.configure`
 before mujoco is first imported), segment red by colour, take the region's
 centroid, size and principal axis (PCA), and back-project with the depth and
-the pinhole intrinsics of the MuJoCo camera (fy = (h/2)/tan(fovy/2), square
+the pinhole intrinsics of the MuJoCo camera (``urdf2mjcf.runner.camera``: square
 pixels, principal point at the image centre; the camera looks along its -z,
 x right, y up). Nothing here reads the true pose of the bag.
 """
@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .camera import pinhole_focal
 from .noise import SensorNoise
 
 
@@ -64,12 +65,6 @@ def segment(mask: np.ndarray, min_pixels: int = 50) -> Segment | None:
     width = float(across.max() - across.min() + 1)
     angle = math.degrees(math.atan2(axis[1], axis[0])) % 180.0
     return Segment(mask, len(us), c, axis, angle, length, width, length / max(width, 1.0))
-
-
-def pinhole_focal(height: int, fovy_deg: float) -> float:
-    """Focal length (pixels, fx = fy) of a MuJoCo camera's image of ``height`` rows:
-    MuJoCo renders a pinhole with square pixels and vertical field of view ``fovy``."""
-    return (height / 2) / math.tan(math.radians(fovy_deg) / 2)
 
 
 def focal(m: mujoco.MjModel, cam: int, height: int) -> float:

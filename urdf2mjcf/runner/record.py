@@ -46,8 +46,8 @@ import mujoco
 import numpy as np
 
 from ..errors import OutputError
+from .camera import CameraModel
 from .load import Facility, LoadError, lookup
-from .perception import pinhole_focal
 
 if TYPE_CHECKING:
     from .noise import SensorNoise
@@ -332,8 +332,9 @@ def camera_info(m: mujoco.MjModel, cam: int, height: int, width: int) -> dict:
     """Pinhole intrinsics of a MuJoCo camera from its fovy, square pixels, the principal
     point at the image centre in ROS pixel coordinates (pixel centres on integers: (w-1)/2);
     no distortion (plumb_bob zeros)."""
-    f = pinhole_focal(height, float(m.cam_fovy[cam]))
-    cx, cy = (width - 1) / 2, (height - 1) / 2
+    model = CameraModel.of(m, cam, width, height)
+    f = model.focal
+    cx, cy = model.principal_point
     return {
         "height": height,
         "width": width,

@@ -34,7 +34,7 @@ Command line (``rover_drive_command``)::
 The package, one module per job: ``roles`` (the rovers of a facility as MuJoCo ids),
 ``odometry`` (dead reckoning and the true pose), ``tasks`` (the closed loops and the
 arm motion), ``sim`` (stepping, wheel commands, the brake), ``report`` (what a task
-did) and ``cli`` (``rover-drive``).
+did), ``state`` (what tasks and reports read of ``sim``) and ``cli`` (``rover-drive``).
 """
 
 from .cli import rover_drive_command

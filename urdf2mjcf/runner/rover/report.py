@@ -4,16 +4,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .odometry import true_pose, wrap_angle
 from .roles import Rover
+from .state import SimState
 from .tasks import Task
 
-if TYPE_CHECKING:
-    from .sim import RoverSim
 
 @dataclass
 class TaskReport:
@@ -68,7 +66,7 @@ class _Track:
     """What one rover's task did, measured after every step: true path and turn, worst
     attitude, arm tracking; the odometry at the start."""
 
-    def __init__(self, sim: RoverSim, rover: Rover):
+    def __init__(self, sim: SimState, rover: Rover):
         self.rover = rover
         odo = sim.odometry[rover.name]
         self.odo0 = (odo.distance, odo.turned, odo.turned_imu)
@@ -79,7 +77,7 @@ class _Track:
         self.turned = 0.0
         self.tilt = self.roll = self.pitch = self.min_pitch = self.arm = 0.0
 
-    def update(self, sim: RoverSim) -> None:
+    def update(self, sim: SimState) -> None:
         r = self.rover
         pose = true_pose(sim.m, sim.d, r)
         self.tilt = max(self.tilt, pose.tilt)
@@ -94,7 +92,7 @@ class _Track:
         self.turned += wrap_angle(pose.yaw - self.last_yaw)
         self.last_yaw = pose.yaw
 
-    def report(self, sim: RoverSim, task: Task, duration: float) -> TaskReport:
+    def report(self, sim: SimState, task: Task, duration: float) -> TaskReport:
         r, odo = self.rover, sim.odometry[self.rover.name]
         pose = true_pose(sim.m, sim.d, r)
         p = sim.d.xpos[r.base]

@@ -5,24 +5,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .roles import Rover
+from .state import SimState
 
-if TYPE_CHECKING:
-    from .sim import RoverSim
 
 class Task:
     """A closed loop on the odometry: ``command`` gives (v m/s, yaw rate rad/s) each step."""
 
     done: bool = False
 
-    def start(self, sim: RoverSim, rover: Rover) -> None:
+    def start(self, sim: SimState, rover: Rover) -> None:
         pass
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
+    def command(self, sim: SimState, rover: Rover) -> tuple[float | None, float]:
         """(v m/s, yaw rate rad/s); v None: brake."""
         raise NotImplementedError
 
@@ -44,13 +42,13 @@ class Straight(Task):
     heading_gain: float = 1.5
     tolerance: float = 0.002
 
-    def start(self, sim: RoverSim, rover: Rover) -> None:
+    def start(self, sim: SimState, rover: Rover) -> None:
         odo = sim.odometry[rover.name]
         self._d0, self._t0, self._h0 = odo.distance, sim.d.time, odo.turned_imu
         self._stopping = False
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
+    def command(self, sim: SimState, rover: Rover) -> tuple[float | None, float]:
         odo = sim.odometry[rover.name]
         sign = 1.0 if self.distance >= 0 else -1.0
         remaining = abs(self.distance) - sign * (odo.distance - self._d0)
@@ -75,14 +73,14 @@ class Turn(Task):
     imu: bool = True
     tolerance: float = math.radians(0.3)
 
-    def start(self, sim: RoverSim, rover: Rover) -> None:
+    def start(self, sim: SimState, rover: Rover) -> None:
         odo = sim.odometry[rover.name]
         self._a0 = odo.turned_imu if self.imu else odo.turned
         self._t0 = sim.d.time
         self._stopping = False
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
+    def command(self, sim: SimState, rover: Rover) -> tuple[float | None, float]:
         odo = sim.odometry[rover.name]
         turned = (odo.turned_imu if self.imu else odo.turned) - self._a0
         sign = 1.0 if self.angle >= 0 else -1.0
@@ -101,11 +99,11 @@ class Hold(Task):
 
     duration: float = 1.0
 
-    def start(self, sim: RoverSim, rover: Rover) -> None:
+    def start(self, sim: SimState, rover: Rover) -> None:
         self._t_end = sim.d.time + self.duration
         self.done = False
 
-    def command(self, sim: RoverSim, rover: Rover) -> tuple[float | None, float]:
+    def command(self, sim: SimState, rover: Rover) -> tuple[float | None, float]:
         self.done = sim.d.time >= self._t_end - 1e-9
         return None, 0.0
 
