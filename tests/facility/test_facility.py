@@ -15,7 +15,8 @@ import pytest
 from lxml import etree
 
 from tests.facility.mechanism_checks import marker_points, penetrations
-from urdf2mjcf.facility.build import build_facility
+from tests.same_model import differences
+from urdf2mjcf.facility.build import FacilityReport, build_facility
 from urdf2mjcf.facility.recipe import load_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,15 +25,30 @@ RECIPES = sorted((ROOT / "recipes").glob("imetro*.yaml"))
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory) -> dict[str, Path]:
+def reports(tmp_path_factory) -> dict[str, FacilityReport]:
     """Each shipped recipe, built once."""
     out = {}
     base = tmp_path_factory.mktemp("facilities")
     for path in RECIPES:
         recipe = load_recipe(path)
-        report = build_facility(recipe, base / recipe.name, root=ROOT)
-        out[path.stem] = report.output
+        out[path.stem] = build_facility(recipe, base / recipe.name, root=ROOT)
     return out
+
+
+@pytest.fixture(scope="module")
+def built(reports) -> dict[str, Path]:
+    return {name: report.output for name, report in reports.items()}
+
+
+@pytest.mark.parametrize("recipe", [p.stem for p in RECIPES])
+def test_what_is_written_is_what_was_validated(reports, recipe):
+    """The scene.xml on disk, compiled again, is bit for bit the model validation
+    stepped (folding and tags change the scene after the conversion's validation)."""
+    report = reports[recipe]
+    assert report.compiled is not None
+    written = mujoco.MjModel.from_xml_path(str(report.output / "scene.xml"))
+    assert differences(written, report.compiled) == []
+    assert differences(written, report.conversion.compiled) != [], "fold and tags changed nothing"
 
 
 def _load(folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, dict]:
@@ -263,3 +279,26 @@ def test_same_seed_gives_identical_files_and_other_seeds_move_only_jittered_pose
             continue
         assert tag == "body" and key in ("pos", "quat"), (name, tag, key)
         assert name == ctb_body or any(name.startswith(p) for p in prefixes), name
+
+
+def test_the_scene_as_written_is_stepped_after_folding_and_tags(tmp_path, monkeypatch):
+    """Validation (compile and step) runs twice: the conversion's, then on the scene
+    as folding and tags left it; the model the build reports is the second's."""
+    from urdf2mjcf.passes import validate
+
+    calls: list[tuple[str, object]] = []
+    real = validate.run
+
+    def spy(xml_path, cfg, **kwargs):
+        result = real(xml_path, cfg, **kwargs)
+        calls.append((Path(xml_path).read_text(), result))
+        return result
+
+    monkeypatch.setattr(validate, "run", spy)
+    recipe = load_recipe(ROOT / "recipes" / "imetro-no-robot.yaml")
+    report = build_facility(recipe, tmp_path / "f", root=ROOT, components=False)
+    assert len(calls) == 2
+    (first, _), (last, result) = calls
+    written = (report.output / "scene.xml").read_text()
+    assert last == written != first  # the second validated the final text
+    assert result is not None and result.steps > 0 and report.compiled is result.model

@@ -21,6 +21,7 @@ from click.testing import CliRunner
 from PIL import Image
 
 from tests.facility.mechanism_checks import dh_flange
+from tests.same_model import differences
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe, parse_recipe
@@ -69,6 +70,14 @@ def built(tmp_path_factory) -> dict:
         name: build_facility(load_recipe(path), base / f"mira3d-{name}", root=ROOT)
         for name, path in RECIPES.items()
     }
+
+
+@pytest.mark.parametrize("name", list(RECIPES))
+def test_what_is_written_is_what_was_validated(built, name):
+    report = built[name]
+    written = mujoco.MjModel.from_xml_path(str(report.output / "scene.xml"))
+    assert report.compiled is not None
+    assert differences(written, report.compiled) == []
 
 
 def _load(folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData]:

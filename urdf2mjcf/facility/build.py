@@ -27,6 +27,7 @@ import yaml
 from .. import api, bundle, untrusted
 from .. import output as out
 from ..errors import InputError
+from ..passes import validate
 from . import fiducials, fold
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
@@ -48,6 +49,9 @@ class FacilityReport:
     manifest: dict
     conversion: api.Report
     components: dict[str, Path] = field(default_factory=dict)
+    compiled: Any = field(default=None, repr=False, compare=False)
+    """The ``mujoco.MjModel`` of ``scene.xml`` as written, the one validation stepped
+    (the conversion's, or, where folding or tags changed the scene, its own)."""
 
 
 def _flag_text(value: object) -> str:
@@ -162,8 +166,14 @@ def build_facility(
         tags = [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials]
         placed = fiducials.add_to_scene(stage / "scene.xml", tags, recipe=recipe.path)
         changed = folded is not None and bool(folded.moved or folded.merged)
-        if placed or changed:  # the scene changed: compile what is written
-            compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
+        if placed or changed:
+            # the scene changed after the conversion validated it: what ships is
+            # validated again as written (compiled from the files and stepped)
+            validated = validate.run(
+                stage / "scene.xml", validate.ValidateConfig(), report_as=output / "scene.xml"
+            )
+            assert validated is not None  # enabled
+            compiled = validated.model
         demo = _write_copies(stage, recipe, root)
         data = manifest(
             stage / "scene.xml",
@@ -190,6 +200,7 @@ def build_facility(
         manifest=data,
         conversion=report,
         components={k: output / v for k, v in built.items()},
+        compiled=compiled,
     )
 
 
