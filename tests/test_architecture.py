@@ -209,3 +209,33 @@ def test_the_generic_facility_builder_names_none_of_our_components():
         if ours.search(line)
     ]
     assert hits == []
+
+
+def _pass_order() -> list[str]:
+    """The passes in the order ``api.build`` runs them (its ``<pass>.run(...)`` calls)."""
+    tree = ast.parse((PACKAGE / "api.py").read_text())
+    (build,) = [n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name == "_build"]
+    order = []
+    for node in ast.walk(build):
+        if (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "run"
+            and isinstance(node.func.value, ast.Name)
+        ):
+            order.append((node.lineno, node.func.value.id))
+    return [name for _, name in sorted(order)]
+
+
+def test_the_docs_number_the_passes_in_the_order_they_run():
+    order = _pass_order()
+    assert order[:2] == ["xacro", "parse"] and order[-1] == "extension"
+    text = DOC.read_text()
+    numbered = re.findall(r"^\| `urdf2mjcf/passes/(\w+)(?:/__init__)?\.py` \| pass (\d+):", text, re.M)
+    assert [name for name, _ in sorted(numbered, key=lambda x: int(x[1]))] == order
+    assert sorted(int(n) for _, n in numbered) == list(range(1, len(order) + 1))
+    drawn = re.findall(r"│  passes/(\w+)(?:/|\.py)", text)  # the diagram, top to bottom
+    assert drawn[: len(order)] == order
+    # nowhere else a number: the module docstrings name their pass
+    for path in (PACKAGE / "passes").rglob("*.py"):
+        assert not re.match(r'"""Pass \d', path.read_text()), path

@@ -1,4 +1,4 @@
-"""Pass 6: :class:`~urdf2mjcf.ir.Model` -> MJCF text in MuJoCo Menagerie's style.
+"""The emit pass: :class:`~urdf2mjcf.ir.Model` -> MJCF text in MuJoCo Menagerie's style.
 
 Every URDF link becomes a body of the same name and every joint keeps its
 name (fixed links are kept unless ``fuse_fixed``). A root link named

@@ -1,4 +1,4 @@
-"""Pass 2: URDF text -> :class:`~urdf2mjcf.ir.Robot` inside a fresh :class:`~urdf2mjcf.ir.Model`.
+"""The parse pass: URDF text -> :class:`~urdf2mjcf.ir.Robot` in a new :class:`~urdf2mjcf.ir.Model`.
 
 Checks the structure URDF requires (unique names, known joint types, one
 root, a tree) and resolves every resource URI to an absolute path. Elements

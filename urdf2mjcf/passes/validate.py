@@ -1,4 +1,4 @@
-"""Pass 7: compile the written MJCF with MuJoCo and step it; any warning fails.
+"""Validation, after the passes: compile the written MJCF in MuJoCo and step it; any warning fails.
 
 MuJoCo's compiler is the best validator of MJCF there is. Stepping for a
 second from the home keyframe (its controls hold the home pose) catches what

@@ -1,4 +1,4 @@
-"""Pass 1: expand xacro (with ``NAME:=VALUE`` arguments) into plain URDF.
+"""The xacro pass, the first: expand xacro (with ``NAME:=VALUE`` arguments) into plain URDF.
 
 Uses the ``xacro`` package itself, with ``$(find pkg)`` answered by our
 :class:`~urdf2mjcf.packages.PackageResolver` instead of ament/rospack, so no

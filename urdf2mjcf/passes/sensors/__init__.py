@@ -1,4 +1,4 @@
-"""Pass 5b: described sensors and cameras -> MuJoCo sites, cameras and sensors.
+"""The sensors pass: described sensors and cameras -> MuJoCo sites, cameras and sensors.
 
 Runs after the actuators pass and before emit. Reads the ``<gazebo>`` and
 ``<ros2_control>`` extensions (parsed by :mod:`.gazebo`) and
