@@ -128,6 +128,31 @@ def test_a_failing_robot_is_a_line_of_the_summary_not_the_end_of_the_batch(tmp_p
     assert not (out / "bad").exists(), "nothing of the failed robot"
 
 
+def test_quiet_leaves_only_the_failed_robots(tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    shutil.copy(GOLDEN / "joints.urdf", src / "good.urdf")
+    (src / "bad.urdf").write_text(BAD_URDF)
+    proc = batch(str(src), "-o", str(tmp_path / "out"), "--workers", "1", "-q")
+    assert proc.returncode == 1, proc.stderr
+    (line,) = proc.stdout.splitlines()
+    assert line.startswith(f"failed: {src / 'bad.urdf'}: ")
+    assert proc.stderr == "", "no progress lines"
+    assert json.loads((tmp_path / "out" / SUMMARY).read_text())["converted"] == 1
+
+
+def test_quiet_means_the_same_in_every_command():
+    from urdf2mjcf.batch import batch_command
+    from urdf2mjcf.certify.command import verify_command
+    from urdf2mjcf.cli import make_facility_command, urdf2mjcf_command
+
+    helps = {
+        command.name: [p.help for p in command.params if "-q" in getattr(p, "opts", ())]
+        for command in (urdf2mjcf_command, batch_command, verify_command, make_facility_command)
+    }
+    assert len({tuple(h) for h in helps.values()}) == 1 and all(len(h) == 1 for h in helps.values())
+
+
 # -- bad input: one line, exit 2, nothing written -----------------------------------------
 
 

@@ -37,7 +37,7 @@ from typing import Any
 import click
 
 from . import output as out
-from .cli_common import pairs, shared_params
+from .cli_common import QUIET, pairs, shared_params
 from .cli_types import BoundedInt
 from .errors import ConversionError, InputError
 from .runner.executors import EXECUTORS, Kind, import_ray, run_jobs
@@ -314,15 +314,17 @@ def _batch(
         overwrite=overwrite,
         on_done=None if quiet else _progress,
     )
-    for e in summary["skipped"]:
-        click.echo(f"skipped: {e['source']} ({e['reason']})")
+    if not quiet:
+        for e in summary["skipped"]:
+            click.echo(f"skipped: {e['source']} ({e['reason']})")
     for e in summary["robots"]:
         if not e["ok"]:
             click.echo(f"failed: {e['source']}: {e['error']}")
-    click.echo(
-        f"converted {summary['converted']}/{len(summary['robots'])} robots into {output} "
-        f"in {summary['wall_time']:.1f} s (summary: {output / SUMMARY})"
-    )
+    if not quiet:
+        click.echo(
+            f"converted {summary['converted']}/{len(summary['robots'])} robots into {output} "
+            f"in {summary['wall_time']:.1f} s (summary: {output / SUMMARY})"
+        )
     sys.exit(1 if summary["failed"] else 0)
 
 
@@ -362,7 +364,7 @@ def _make_command() -> click.Command:
             help="Write into a non-empty folder that is not an earlier batch "
             "(its other files are kept).",
         ),
-        click.Option(["-q", "--quiet"], is_flag=True, help="No progress lines."),
+        click.Option(list(QUIET[0]), **QUIET[1]),
         *shared_params(),  # the converter's options that apply to every robot
     ]
     return click.Command(

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from . import extras, headless
-from .cli_common import DENSITY, configure_logging, pairs, shared_option
+from .cli_common import DENSITY, configure_logging, pairs, quiet_option, shared_option
 from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .errors import ConversionError
 from .ir import Note
@@ -131,7 +131,7 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
     help="Also write the conversion report as JSON.",
 )
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
-@click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+@quiet_option()
 def urdf2mjcf_command(
     source: Path,
     xacro_args: tuple[str, ...],
@@ -549,7 +549,7 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
     "--demo", is_flag=True, help="Then replay the logistics demo in it (see facility-demo)."
 )
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
-@click.option("-q", "--quiet", is_flag=True, help="Only errors.")
+@quiet_option()
 @click.pass_context
 def make_facility_command(
     ctx: click.Context,

@@ -165,6 +165,21 @@ _SHARED: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
     ),
 }
 
+QUIET: tuple[tuple[str, ...], dict[str, Any]] = (
+    ("-q", "--quiet"),
+    {
+        "is_flag": True,
+        "help": "Only errors and failures (a failed robot, a failing figure): no progress, "
+        "notes or summary.",
+    },
+)
+"""``-q`` of every command that has it: one meaning everywhere."""
+
+
+def quiet_option() -> Callable[[F], F]:
+    return click.option(*QUIET[0], **QUIET[1])
+
+
 SHARED_OPTIONS = tuple(_SHARED)
 """The converter's options that apply to every robot of a batch, in the order of its help."""
 

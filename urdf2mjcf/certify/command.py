@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from ..cli_common import configure_logging, pairs
+from ..cli_common import configure_logging, pairs, quiet_option
 from ..cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from ..errors import InputError
 from ..untrusted import printable
@@ -126,7 +126,7 @@ def load_model(path: Path) -> Any:
     "--trust-xacro", is_flag=True, help="Run the description's code, as ROS's xacro does."
 )
 @click.option("-v", "--verbose", count=True, help="The certificate's table on stderr.")
-@click.option("-q", "--quiet", is_flag=True, help="Only errors and failing figures.")
+@quiet_option()
 def verify_command(
     source: Path,
     model: Path,
