@@ -391,7 +391,7 @@ def test_unknown_option_is_one_usage_line(command, work):
 
 BUGGY = """
 import click
-from urdf2mjcf.cli import run_command
+from urdf2mjcf.command_runner import run_command
 
 @click.command("buggy")
 def buggy():
@@ -417,7 +417,7 @@ WRAPPED_SIGTERM = """
 import os, signal, sys, time
 from pathlib import Path
 import click
-from urdf2mjcf.cli import run_command
+from urdf2mjcf.command_runner import run_command
 from urdf2mjcf.output import staged_folder
 
 @click.command("stage")
@@ -453,7 +453,7 @@ def test_sigterm_that_a_native_import_wraps_is_still_a_termination(tmp_path):
 SWALLOWED_SIGTERM = """
 import os, signal, time
 import click
-from urdf2mjcf.cli import run_command
+from urdf2mjcf.command_runner import run_command
 
 @click.command("swallow")
 def swallow():
