@@ -31,6 +31,7 @@ KINDS = {
     "coacd": ".npz",
     "hull_gap": ".json",
     "hulls": ".npz",
+    "primitive_fits": ".json",
     "meshes": ".bin",
     "certificate": ".json",  # geometric figures of certificates
 }

@@ -63,6 +63,10 @@ def make_options(
     density: float = inertia.InertiaConfig.density,
     link_density: Mapping[str, float] | None = None,
     collision_source: str = "collision",
+    collision_shape: str = "decompose",
+    link_collision: Mapping[str, str] | None = None,
+    primitive_tolerance: float = collision.primitives.TOLERANCE_MM,
+    primitive_volume_ratio: float = collision.primitives.MAX_VOLUME_RATIO,
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
     workers: int = 0,
@@ -91,7 +95,11 @@ def make_options(
     from ``$URDF2MJCF_TRUST_XACRO`` (default: expressions are checked). ``certify``:
     compute the certificate (with validation); ``verify``: compute it even without
     validation and fail the conversion (:class:`~urdf2mjcf.certify.CertificateFailed`,
-    nothing written) when it fails, against ``tolerances``."""
+    nothing written) when it fails, against ``tolerances``. ``collision_shape``: what
+    collision meshes become (``decompose``, ``hull``, ``primitive`` or ``auto``), for
+    every link; ``link_collision``: link name -> shape, above every other route;
+    ``primitive_tolerance`` (mm) and ``primitive_volume_ratio``: what ``auto`` accepts
+    of a primitive fit (see :mod:`urdf2mjcf.passes.collision`)."""
     from .passes.xacro_guard import trust_from_env
 
     return ConvertOptions(
@@ -117,6 +125,12 @@ def make_options(
             workers=workers,
             timeout=decompose_timeout,
             progress=progress,
+            shape=collision_shape,  # type: ignore[arg-type]  # checked by the pass
+            link_shapes=dict(link_collision or {}),
+            primitive_tolerance_mm=primitive_tolerance,
+            primitive_volume_ratio=primitive_volume_ratio,
+            config_file=Path(actuator_config) if actuator_config else None,
+            mujoco_extension=mujoco_extension,
         ),
         inertia=inertia.InertiaConfig(
             density=density, link_density=dict(link_density or {}), free_root=floating_base

@@ -5,6 +5,7 @@
     <root>/coacd/<key>.npz      convex decompositions (passes/collision/decompositions.py)
     <root>/hull_gap/<key>.json  hull gaps of collision meshes (passes/collision/decompositions.py)
     <root>/hulls/<key>.npz      convex hulls of near-convex collision meshes (the same module)
+    <root>/primitive_fits/<key>.json  primitives fitted to collision meshes (the same module)
     <root>/meshes/<key>.bin     loaded, cleaned, decimated mesh files (passes/meshes/cache.py)
 
 An entry's name is :func:`make_key` of everything it depends on, so an entry
@@ -65,6 +66,7 @@ KINDS = {
     "coacd": "convex decompositions",
     "hull_gap": "hull gaps",
     "hulls": "convex hulls",
+    "primitive_fits": "primitives fitted to meshes",
     "meshes": "loaded meshes",
     "certificate": "geometric figures of certificates",
 }
@@ -74,6 +76,7 @@ SUFFIXES = {
     "coacd": ".npz",
     "hull_gap": ".json",
     "hulls": ".npz",
+    "primitive_fits": ".json",
     "meshes": ".bin",
     "certificate": ".json",
 }

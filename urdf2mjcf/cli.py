@@ -11,11 +11,18 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from . import extras, headless
-from .cli_common import DENSITY, configure_logging, pairs, quiet_option, shared_option
+from .cli_common import (
+    DENSITY,
+    KeyedChoice,
+    configure_logging,
+    pairs,
+    quiet_option,
+    shared_option,
+)
 from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .command_runner import run_command
 from .errors import ConversionError
-from .ir import Note
+from .ir import COLLISION_SHAPES, Note
 from .untrusted import printable
 
 if TYPE_CHECKING:
@@ -81,6 +88,17 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
     help="Per-link density override (repeatable).",
 )
 @shared_option("collision_source")
+@shared_option("collision_shape")
+@click.option(
+    "--link-collision",
+    multiple=True,
+    type=KeyedChoice(COLLISION_SHAPES, "LINK"),
+    metavar="LINK=SHAPE",
+    help="One link's collision shape (repeatable); above the URDF's <mujoco> and the "
+    "--actuator-config file's collision section.",
+)
+@shared_option("primitive_tolerance")
+@shared_option("primitive_volume_ratio")
 @shared_option("actuator_config")
 @shared_option("gravcomp")
 @shared_option("no_joint_sensors")
@@ -136,6 +154,10 @@ def urdf2mjcf_command(
     density: float,
     link_density: tuple[tuple[str, float], ...],
     collision_source: str,
+    collision_shape: str,
+    link_collision: tuple[tuple[str, str], ...],
+    primitive_tolerance: float,
+    primitive_volume_ratio: float,
     actuator_config: Path | None,
     gravcomp: bool,
     no_joint_sensors: bool,
@@ -195,6 +217,10 @@ def urdf2mjcf_command(
             density=density,
             link_density=densities,
             collision_source=collision_source,
+            collision_shape=collision_shape,
+            link_collision=dict(link_collision),
+            primitive_tolerance=primitive_tolerance,
+            primitive_volume_ratio=primitive_volume_ratio,
             cache_dir=cache_dir,
             use_cache=not no_cache,
             workers=jobs,

@@ -17,9 +17,11 @@ from typing import Any, TypeVar
 import click
 
 from .cli_types import BoundedInt, FiniteFloat
+from .ir import COLLISION_SHAPES
 from .passes.collision import CollisionConfig
 from .passes.inertia import InertiaConfig
 from .passes.meshes import MeshConfig
+from .untrusted import excerpt
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -34,6 +36,31 @@ def configure_logging(verbose: int, quiet: bool) -> None:
     logging.basicConfig(
         level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
     )
+
+
+class KeyedChoice(click.ParamType):
+    """``KEY=CHOICE``, the choice one of ``choices``; converts to ``(key, choice)``."""
+
+    name = "key=choice"
+
+    def __init__(self, choices: tuple[str, ...], key_name: str = "KEY") -> None:
+        self.choices = choices
+        self.key_name = key_name
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        key, found, choice = str(value).partition("=")
+        if not found or not key:
+            self.fail(f"'{excerpt(str(value), 40)}' is not {self.key_name}=VALUE", param, ctx)
+        if choice not in self.choices:
+            self.fail(
+                f"{excerpt(key, 40)}: '{excerpt(choice, 20)}' is not one of "
+                f"{', '.join(self.choices)}",
+                param,
+                ctx,
+            )
+        return (key, choice)
 
 
 def pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
@@ -82,6 +109,37 @@ _SHARED: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
             "default": "collision",
             "show_default": True,
             "help": "Where collision geometry comes from.",
+        },
+    ),
+    "collision_shape": (
+        ("--collision-shape",),
+        {
+            "type": click.Choice(COLLISION_SHAPES),
+            "default": CollisionConfig.shape,
+            "show_default": True,
+            "help": "What collision meshes become: decompose (the hull, or convex parts when "
+            "the hull is far from the mesh), hull, primitive (fitted spheres, capsules, "
+            "cylinders, boxes) or auto (a primitive within --primitive-tolerance, else as "
+            "decompose).",
+        },
+    ),
+    "primitive_tolerance": (
+        ("--primitive-tolerance",),
+        {
+            "type": FiniteFloat(0.0, 1e6, low_open=True),
+            "default": CollisionConfig.primitive_tolerance_mm,
+            "show_default": True,
+            "metavar": "MM",
+            "help": "auto: largest distance (mm) from a primitive's surface to the mesh.",
+        },
+    ),
+    "primitive_volume_ratio": (
+        ("--primitive-volume-ratio",),
+        {
+            "type": FiniteFloat(1.0, 1e6),
+            "default": CollisionConfig.primitive_volume_ratio,
+            "show_default": True,
+            "help": "auto: largest primitive volume / mesh volume.",
         },
     ),
     "actuator_config": (

@@ -537,9 +537,23 @@ class Sensor:
 
 
 NoteKind = Literal[
-    "warning", "repaired", "estimated", "decomposed", "cached", "hull", "decimated", "info"
+    "warning",
+    "repaired",
+    "estimated",
+    "decomposed",
+    "cached",
+    "hull",
+    "primitive",
+    "decimated",
+    "info",
 ]
-"""``decomposed``: CoACD ran; ``cached``: a decomposition came from the disk cache."""
+"""``decomposed``: CoACD ran; ``cached``: a decomposition came from the disk cache;
+``primitive``: a collision mesh became fitted primitives."""
+
+CollisionShape = Literal["decompose", "hull", "primitive", "auto"]
+"""What a collision mesh becomes (see :mod:`urdf2mjcf.passes.collision`)."""
+
+COLLISION_SHAPES: tuple[CollisionShape, ...] = ("decompose", "hull", "primitive", "auto")
 
 
 @dataclass(frozen=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,6 +54,11 @@ class Report:
         return self.of_kind("decomposed")
 
     @property
+    def primitive(self) -> tuple[Note, ...]:
+        """Collision meshes that became fitted primitives (their deviation in each)."""
+        return self.of_kind("primitive")
+
+    @property
     def cached(self) -> tuple[Note, ...]:
         """Decompositions taken from the disk cache."""
         return self.of_kind("cached")
@@ -90,4 +96,26 @@ class Report:
         extra = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
         if extra:
             lines.append(f"  {extra}")
+        shapes = self.collision_shapes()
+        if shapes:
+            lines.append(f"  collision: {shapes}")
         return "\n".join(lines)
+
+    def collision_shapes(self) -> str:
+        """``3 primitives (2 capsule, 1 box), 1 hull, 2 decomposed``: what the distinct
+        collision meshes became; empty when none became primitives (a set of several
+        primitives counts as its types joined by ``+``)."""
+        primitive = self.of_kind("primitive")
+        if not primitive:
+            return ""
+        kinds = Counter(n.message.split(" ", 1)[0] for n in primitive)
+        ordered = sorted(kinds.items(), key=lambda kc: (-kc[1], kc[0]))  # most first
+        listed = ", ".join(f"{c} {k}" for k, c in ordered)
+        hulls = len(self.of_kind("hull"))
+        parts = len(self.of_kind("decomposed")) + len(self.of_kind("cached"))
+        words = [f"{len(primitive)} primitive{'s' if len(primitive) != 1 else ''} ({listed})"]
+        if hulls:
+            words.append(f"{hulls} hull{'s' if hulls != 1 else ''}")
+        if parts:
+            words.append(f"{parts} decomposed")
+        return ", ".join(words)

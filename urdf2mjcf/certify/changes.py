@@ -20,7 +20,9 @@ from ..ir import Model, Note
 from .mass import LinkInertial, urdf_inertial
 from .reference import Reference
 
-CHANGE_KINDS = ("repaired", "estimated", "decimated", "hull", "decomposed", "cached", "warning")
+CHANGE_KINDS = (
+    "repaired", "estimated", "decimated", "hull", "decomposed", "cached", "primitive", "warning"
+)
 """Note kinds that say the model differs from the description (``info`` notes do not)."""
 
 _LINK = re.compile(r"link '([^']*)'")

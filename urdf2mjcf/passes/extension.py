@@ -16,7 +16,8 @@ child in document order, to the document emit produced:
   ``geom``, ``site``, ``camera``, ``light`` with ``parent="NAME"`` added to
   the body ``NAME`` (``world`` for the world body);
 * ``override``: attributes of a generated (or earlier added) element, found
-  by tag and name, set or replaced; ``attr=""`` removes one.
+  by tag and name, set or replaced; ``attr=""`` removes one;
+* ``collision``: skipped here; the collision pass read it (a link's collision shape).
 
 Missing sections are created in Menagerie's order. The document is
 re-serialised exactly as emit writes it, so a robot without ``<mujoco>``
@@ -76,8 +77,8 @@ APPENDED = ("asset", "contact", "equality", "tendon", "actuator", "sensor")
 BODY_LEVEL = ("body", "frame", "geom", "site", "camera", "light")
 """Elements that may sit directly in ``<mujoco>`` with ``parent="BODY"``."""
 
-ELEMENTS = (*SECTIONS, *BODY_LEVEL, "override")
-"""Everything a ``<mujoco>`` element may contain."""
+ELEMENTS = (*SECTIONS, *BODY_LEVEL, "collision", "override")
+"""Everything a ``<mujoco>`` element may contain (``collision``: for the collision pass)."""
 
 OVERRIDES: dict[str, tuple[str, tuple[str, ...] | None]] = {
     "body": ("worldbody", ("body",)),
@@ -245,8 +246,12 @@ def _apply(ctx: _Context, text: str) -> None:
         raise ctx.error(f"takes no attributes; found {_names(src.attrib)}", "mujoco")
     _check_file_readers(ctx, src)
     applied: list[str] = []
+    shapes = 0
     for child in _elements(src):
         tag = child.tag
+        if tag == "collision":  # a link's collision shape: read by the collision pass
+            shapes += 1
+            continue
         if tag in MERGED:
             _merge_singleton(ctx, child)
         elif tag == "default":
@@ -278,6 +283,8 @@ def _apply(ctx: _Context, text: str) -> None:
         applied.append(
             _label(child) if tag in BODY_LEVEL or tag in MERGED or not count else f"{tag} ({count})"
         )
+    if shapes and not applied:
+        return  # only collision shapes, which the collision pass reported
     message = "applied " + (", ".join(applied) if applied else "nothing (empty)")
     ctx.notes.append(Note("info", "mujoco", message))
     log.debug("%s: mujoco: %s", ctx.source, message)

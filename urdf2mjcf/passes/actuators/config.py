@@ -1,6 +1,6 @@
 """The actuator file (``--actuator-config FILE``): joint-name patterns to gains.
 
-A YAML mapping with four optional sections::
+A YAML mapping with five optional sections::
 
     defaults:                  # design parameters of the default gains
       bandwidth_hz: 10         # (see passes/actuators.py for what each means)
@@ -16,6 +16,10 @@ A YAML mapping with four optional sections::
       rail: {type: velocity, kv: 500}
       "*_passive": {type: none, damping: 2}
     gravcomp: ["base_link", "arm_*"]   # or true (every moving link), or {pattern: 0.5}
+    collision:                 # what collision meshes become (read by the collision pass)
+      default: auto            # decompose, hull, primitive or auto, for every link
+      links: {forearm: primitive}   # exact link names
+
 
 Keys of a ``joints`` entry or a class:
 
@@ -57,6 +61,7 @@ import yaml
 
 from ... import schema, untrusted
 from ...errors import InputError
+from ...ir import COLLISION_SHAPES
 
 ACTUATOR_TYPES = ("position", "velocity", "motor", "none")
 _TYPE_ALIASES = {"effort": "motor"}
@@ -70,7 +75,7 @@ DESIGN_KEYS = (
     "sag_tolerance_linear",
     "drift_tolerance",
 )
-_SECTIONS = ("defaults", "classes", "joints", "gravcomp")
+_SECTIONS = ("defaults", "classes", "joints", "gravcomp", "collision")
 MAX_MAGNITUDE = 1e12
 """Largest magnitude of any number in the file (gains, ranges, armature): far above
 any real actuator (kp of 1e12 N m/rad), far below what overflows MuJoCo's arithmetic."""
@@ -117,6 +122,10 @@ class ActuatorFile:
     """(pattern, settings with its class expanded under them), in file order."""
     gravcomp: bool | tuple[tuple[str, float], ...] = False
     """True: every moving link; else (link pattern, fraction) pairs."""
+    collision_default: str | None = None
+    """``collision: default``: the collision shape of every link (None: not said)."""
+    collision_links: Mapping[str, str] = field(default_factory=dict)
+    """``collision: links``: link name -> collision shape."""
 
 
 def load(path: Path) -> ActuatorFile:
@@ -173,7 +182,17 @@ def parse(text: str, path: Path) -> ActuatorFile:
             spec = spec.over(classes[spec.actuator_class])
         joints.append((str(pattern), spec))
     gravcomp = r.gravcomp(top.get("gravcomp", False))
-    return ActuatorFile(path, defaults, classes, tuple(joints), gravcomp)
+    collision = r.mapping(top.get("collision", {}), "collision")
+    r.only(collision, ("default", "links"), "collision")
+    default = collision.get("default")
+    shape_default = r.shape(default, "collision: default") if default is not None else None
+    shape_links = {
+        name: r.shape(value, f"collision: links: {name}")
+        for name, value in r.mapping(collision.get("links", {}), "collision: links").items()
+    }
+    return ActuatorFile(
+        path, defaults, classes, tuple(joints), gravcomp, shape_default, shape_links
+    )
 
 
 class _Reader:
@@ -277,6 +296,13 @@ class _Reader:
             else:
                 values[key] = self.number(value, at)
         return ActuatorSpec(**values)
+
+    def shape(self, value: Any, where: str) -> str:
+        """A collision shape name (:data:`~urdf2mjcf.ir.COLLISION_SHAPES`)."""
+        if not isinstance(value, str) or value not in COLLISION_SHAPES:
+            valid = ", ".join(COLLISION_SHAPES)
+            raise self.fail(f"unknown collision shape {_show(value)}; valid: {valid}", where)
+        return value
 
     def gravcomp(self, value: Any) -> bool | tuple[tuple[str, float], ...]:
         where = "gravcomp"

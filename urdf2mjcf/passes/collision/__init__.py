@@ -6,6 +6,21 @@ becomes that hull; a clearly concave one is split by CoACD into convex parts,
 one geom each, all placed at the element's origin like the mesh itself. A flat
 mesh (no volume) becomes a thin box, which MuJoCo can collide with.
 
+That is the ``decompose`` collision shape, the default. The others, chosen for
+the whole robot (:attr:`CollisionConfig.shape`) or per link:
+
+* ``hull``: every mesh becomes its convex hull;
+* ``primitive``: the best fitted primitive (or set of primitives, see
+  :mod:`.primitives`); the hull when nothing fits (a degenerate mesh);
+* ``auto``: the cheapest primitive fit within :attr:`CollisionConfig.primitive_tolerance_mm`
+  and :attr:`CollisionConfig.primitive_volume_ratio`, else what ``decompose`` gives.
+
+A link's shape is, first found: :attr:`CollisionConfig.link_shapes` (the
+command line), the URDF's ``<mujoco><collision link= shape=/></mujoco>``, the
+actuator file's ``collision: links``, its ``collision: default``, then
+:attr:`CollisionConfig.shape`. Fit candidates are cached by mesh content like
+hull gaps, so a warm conversion does not fit again.
+
 Decompositions run in worker processes (:mod:`.worker`), so that
 CoACD crashing (a C++ assertion aborts the process) or hanging costs only
 that mesh: it gets its convex hull and a warning. Results are kept in a disk
@@ -25,18 +40,35 @@ import importlib.util
 import logging
 import os
 from collections import Counter
-from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from lxml import etree
 
 from ...assets import merge_assets, mesh_asset, safe_stem
-from ...errors import MeshError
+from ...errors import InputError, MeshError, URDFError
 from ...geometry import primitive_geom
-from ...ir import Collision, Geom, LoadedMesh, MeshAsset, MeshData, MeshRef, Model, Note, Visual
-from ...transforms import pose_matrix, quat_from_rpy, split_transform, vec3
+from ...ir import (
+    COLLISION_SHAPES,
+    Collision,
+    CollisionShape,
+    Geom,
+    LoadedMesh,
+    MeshAsset,
+    MeshData,
+    MeshRef,
+    Model,
+    Note,
+    Robot,
+    Visual,
+)
+from ...transforms import pose_matrix, quat_from_rpy, split_transform, transform, vec3
+from ...untrusted import excerpt
+from ..actuators import config as actuator_file
+from . import primitives
 from .convexity import (
     CANDIDATES,
     HULL_SAMPLES,
@@ -115,6 +147,21 @@ class CollisionConfig:
     0.1-5 s; triangle soups can keep CoACD busy for many minutes."""
     progress: Callable[[int, int, str], None] | None = None
     """Called with (done, total, label) each time a decomposition finishes."""
+    shape: CollisionShape = "decompose"
+    """What collision meshes become (see the module's docstring); ``decompose`` is
+    the behaviour described above. Primitive geometry in the URDF stays as it is."""
+    link_shapes: Mapping[str, str] = field(default_factory=dict)
+    """Link name -> shape; above every other route (the command line's ``--link-collision``).
+    An unknown shape or link is an :class:`~urdf2mjcf.errors.InputError`."""
+    primitive_tolerance_mm: float = primitives.TOLERANCE_MM
+    """``auto``: largest Hausdorff distance (mm) of an accepted primitive fit."""
+    primitive_volume_ratio: float = primitives.MAX_VOLUME_RATIO
+    """``auto``: largest fit volume / mesh volume of an accepted primitive fit."""
+    config_file: Path | None = None
+    """The actuator file (``--actuator-config``), whose ``collision`` section gives
+    shapes (see :mod:`urdf2mjcf.passes.actuators.config`)."""
+    mujoco_extension: bool = True
+    """Read ``<collision link= shape=>`` in the URDF's ``<mujoco>`` elements."""
 
 
 # ---------------------------------------------------------------------------
@@ -126,7 +173,7 @@ class CollisionConfig:
 class _Plan:
     """What one distinct mesh turns into."""
 
-    kind: Literal["hull", "parts", "box", "none"]
+    kind: Literal["hull", "parts", "box", "fits", "none"]
     label: str
     """``mesh '<filename>'`` as first written in the URDF."""
     stem: str
@@ -135,6 +182,8 @@ class _Plan:
     """The hull (one) or the convex parts (several)."""
     box: tuple[np.ndarray, np.ndarray] | None = None
     """(4, 4) pose in the mesh frame and (3,) full sizes, for flat meshes."""
+    fits: tuple[primitives.Fit, ...] = ()
+    """The fitted primitives, in the mesh frame."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +216,8 @@ def run(model: Model, cfg: CollisionConfig) -> Model:
             elements[link.name] = ()
 
     notes: list[Note] = []
-    plans = _plan_meshes(model, cfg, elements, notes)
+    shapes = link_shapes(model.robot, cfg, notes)
+    plans = _plan_meshes(model, cfg, elements, shapes, notes)
 
     new_assets: list[MeshAsset] = []
     geoms_by_link: dict[str, list[tuple[Geom, str | None, int]]] = {}
@@ -178,7 +228,8 @@ def run(model: Model, cfg: CollisionConfig) -> Model:
             if not isinstance(geometry, MeshRef):
                 pieces = [primitive_geom("collision", el.origin, geometry)]
             else:
-                plan = plans.get((geometry.path, geometry.scale))  # type: ignore[arg-type]
+                mesh_key = (geometry.path, geometry.scale)
+                plan = plans.get((mesh_key, shapes[link.name]))  # type: ignore[arg-type]
                 if plan is None:  # a visual mesh whose file was missing
                     continue
                 pieces = _plan_geoms(plan, el, new_assets)
@@ -208,6 +259,83 @@ def run(model: Model, cfg: CollisionConfig) -> Model:
     )
 
 
+def link_shapes(robot: Robot, cfg: CollisionConfig, notes: list[Note]) -> dict[str, CollisionShape]:
+    """Each link's collision shape: the first of :attr:`CollisionConfig.link_shapes`, the
+    URDF's ``<mujoco><collision>``, the actuator file's ``collision: links``, its
+    ``collision: default``, :attr:`CollisionConfig.shape`."""
+    links = robot.link_map
+    if cfg.shape not in COLLISION_SHAPES:
+        raise InputError(
+            f"unknown collision shape '{excerpt(str(cfg.shape), 20)}'; "
+            f"valid: {', '.join(COLLISION_SHAPES)}"
+        )
+    for link, shape in cfg.link_shapes.items():  # the command line's: checked first
+        where = f"--link-collision {excerpt(link, 60)}={excerpt(shape, 20)}"
+        if shape not in COLLISION_SHAPES:
+            raise InputError(
+                f"unknown collision shape; valid: {', '.join(COLLISION_SHAPES)}", element=where
+            )
+        if link not in links:
+            raise InputError(f"no link '{excerpt(link, 60)}' in the robot", element=where)
+    default: CollisionShape = cfg.shape
+    from_file: dict[str, CollisionShape] = {}
+    if cfg.config_file is not None:
+        file = actuator_file.load(cfg.config_file)
+        if file.collision_default is not None:
+            default = file.collision_default  # type: ignore[assignment]  # checked on reading
+        for link, shape in file.collision_links.items():
+            if link in links:
+                from_file[link] = shape  # type: ignore[assignment]
+            else:  # as for joint patterns: one file may serve variants of a robot
+                notes.append(
+                    Note(
+                        "warning",
+                        f"link '{excerpt(link, 60)}'",
+                        f"{cfg.config_file}: collision: links names a link that does not exist",
+                    )
+                )
+    from_urdf = _extension_shapes(robot) if cfg.mujoco_extension else {}
+    return {
+        name: cfg.link_shapes.get(name)  # type: ignore[misc]
+        or from_urdf.get(name)
+        or from_file.get(name)
+        or default
+        for name in links
+    }
+
+
+def _extension_shapes(robot: Robot) -> dict[str, CollisionShape]:
+    """``<mujoco><collision link="NAME" shape="SHAPE"/></mujoco>``, in document order
+    (a later one for the same link wins). The extension pass skips these elements."""
+    out: dict[str, CollisionShape] = {}
+    parser = etree.XMLParser(remove_blank_text=True, remove_comments=True, remove_pis=True)
+    for ext in robot.extensions:
+        if ext.tag != "mujoco":
+            continue
+        for el in etree.fromstring(ext.xml.strip(), parser):
+            if el.tag != "collision":
+                continue
+            link, shape = el.get("link"), el.get("shape")
+            where = f"mujoco collision link='{excerpt(link or '', 60)}'"
+            if set(el.attrib) != {"link", "shape"} or len(el):
+                raise URDFError(
+                    'takes exactly link="LINK" shape="SHAPE" and no content',
+                    file=robot.source,
+                    element=where,
+                )
+            if shape not in COLLISION_SHAPES:
+                raise URDFError(
+                    f"unknown shape '{excerpt(shape or '', 20)}'; "
+                    f"valid: {', '.join(COLLISION_SHAPES)}",
+                    file=robot.source,
+                    element=where,
+                )
+            if link not in robot.link_map:
+                raise URDFError("no such link in the robot", file=robot.source, element=where)
+            out[link] = shape  # type: ignore[assignment]
+    return out
+
+
 def _unique_element_names(elements: dict[str, tuple[Collision | Visual, ...]]) -> set[str]:
     """Element names given once in the whole robot (``<collision name="collision">``
     in every link is common in the wild and cannot name a geom)."""
@@ -219,6 +347,13 @@ def _unique_element_names(elements: dict[str, tuple[Collision | Visual, ...]]) -
 def _plan_geoms(plan: _Plan, el: Collision | Visual, new_assets: list[MeshAsset]) -> list[Geom]:
     if plan.kind == "none":
         return []
+    if plan.kind == "fits":
+        origin = pose_matrix(el.origin)
+        fits = []
+        for fit in plan.fits:
+            pos, quat = split_transform(origin @ transform(fit.pos, fit.quat))
+            fits.append(Geom(role="collision", type=fit.type, pos=pos, quat=quat, size=fit.size))
+        return fits
     if plan.kind == "box":
         assert plan.box is not None
         box_pose, sizes = plan.box
@@ -246,17 +381,20 @@ def _plan_meshes(
     model: Model,
     cfg: CollisionConfig,
     elements: dict[str, tuple[Collision | Visual, ...]],
+    shapes: Mapping[str, CollisionShape],
     notes: list[Note],
-) -> dict[MeshKey, _Plan]:
-    """Decide hull / parts / box for each distinct mesh and produce its pieces.
+) -> dict[tuple[MeshKey, CollisionShape], _Plan]:
+    """Decide hull / parts / box / primitives for each distinct mesh and shape and
+    produce its pieces.
 
-    Meshes with the same content (``LoadedMesh.sha256``) share one plan.
+    Meshes with the same content (``LoadedMesh.sha256``) and shape share one plan.
     """
     cache = _open_cache(cfg)
-    by_content: dict[str, _Plan | _Job] = {}
-    mesh_notes: dict[str, list[Note]] = {}  # content hash -> its notes
-    users: dict[str, list[MeshKey]] = {}  # content hash -> mesh keys using it
+    by_content: dict[tuple[str, CollisionShape], _Plan | _Job] = {}
+    mesh_notes: dict[tuple[str, CollisionShape], list[Note]] = {}  # (content, shape) -> notes
+    users: dict[tuple[str, CollisionShape], list[MeshKey]] = {}  # -> mesh keys using it
     jobs: list[_Job] = []
+    job_keys: set[str] = set()
 
     for link_name, els in elements.items():
         for el in els:
@@ -273,24 +411,27 @@ def _plan_meshes(
                     file=ref.path or ref.filename,
                     element=f"link '{link_name}' collision mesh '{ref.filename}'",
                 )
-            if loaded.sha256 not in by_content:
-                mesh_notes[loaded.sha256] = []
-                outcome = _classify(loaded, ref, cfg, cache, mesh_notes[loaded.sha256])
-                by_content[loaded.sha256] = outcome
-                if isinstance(outcome, _Job):
+            content = (loaded.sha256, shapes[link_name])
+            if content not in by_content:
+                mesh_notes[content] = []
+                outcome = _classify(loaded, ref, content[1], cfg, cache, mesh_notes[content])
+                by_content[content] = outcome
+                # one CoACD run for a mesh that two shapes (decompose, auto) both decompose
+                if isinstance(outcome, _Job) and outcome.key not in job_keys:
                     jobs.append(outcome)
-            users.setdefault(loaded.sha256, [])
-            if key not in users[loaded.sha256]:
-                users[loaded.sha256].append(key)
+                    job_keys.add(outcome.key)
+            users.setdefault(content, [])
+            if key not in users[content]:
+                users[content].append(key)
 
     results = _run_jobs(jobs, cfg, cache)
-    plans: dict[MeshKey, _Plan] = {}
-    for sha, outcome in by_content.items():  # document order, whatever the completion order
+    plans: dict[tuple[MeshKey, CollisionShape], _Plan] = {}
+    for content, outcome in by_content.items():  # document order, whatever the completion order
         if isinstance(outcome, _Job):
-            outcome = _job_plan(outcome, *results[outcome.key], mesh_notes[sha])
-        notes.extend(mesh_notes[sha])
-        for key in users[sha]:
-            plans[key] = outcome
+            outcome = _job_plan(outcome, *results[outcome.key], mesh_notes[content])
+        notes.extend(mesh_notes[content])
+        for key in users[content]:
+            plans[(key, content[1])] = outcome
     return plans
 
 
@@ -323,11 +464,12 @@ GAP_PARAMS = {"hull_samples": HULL_SAMPLES, "mesh_samples": MESH_SAMPLES, "candi
 def _classify(
     loaded: LoadedMesh,
     ref: MeshRef,
+    shape: CollisionShape,
     cfg: CollisionConfig,
     cache: DecompositionCache | None,
     notes: list[Note],
 ) -> _Plan | _Job:
-    """A finished plan (hull, cached parts, box, nothing) or a job for CoACD."""
+    """A finished plan (hull, cached parts, box, primitives, nothing) or a job for CoACD."""
     label = f"mesh '{ref.filename}'"
     name = ref.filename.replace("\\", "/").rsplit("/", 1)[-1]
     stem = safe_stem(Path(name).stem or "mesh")
@@ -336,6 +478,21 @@ def _classify(
     merged = array_digest(loaded.merged.vertices, loaded.merged.faces)
     gap_key = cache_key(loaded.sha256, f"hull-gap:{merged}", GAP_PARAMS)
     hull_key = cache_key(loaded.sha256, f"convex-hull:{merged}", _hull_params())
+    if shape in ("primitive", "auto"):
+        cands = _fit_candidates(loaded, merged, cache)
+        chosen: primitives.Candidate | None
+        if shape == "primitive":
+            chosen = primitives.best(cands) if cands else None
+        else:
+            tolerance = cfg.primitive_tolerance_mm * 1e-3
+            chosen = primitives.choose(cands, tolerance, cfg.primitive_volume_ratio)
+        if chosen is not None:
+            notes.append(Note("primitive", label, fit_message(chosen)))
+            return _Plan("fits", label, stem, fits=chosen.fits)
+        if shape == "primitive":
+            notes.append(Note("info", label, "no primitive fits this mesh; using the convex hull"))
+    if shape in ("hull", "primitive"):
+        return _hull_plan(loaded, label, stem, hull_key, shape, cache, notes)
     cached_gap = cache.load_gap(gap_key) if cache is not None else None
     if cache is not None and cached_gap is not None and cached_gap <= cfg.max_hull_gap:
         # A warm run's usual case: no trimesh, no qhull (the stored hull is bit-exact).
@@ -374,6 +531,93 @@ def _classify(
     if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
         return _flat(label, stem, mesh.vertices, notes)
     return _Job(key, label, stem, name, fit.gap, hull, vertices, faces)
+
+
+def fit_message(chosen: primitives.Candidate) -> str:
+    """``capsule+box (Hausdorff 1.2 mm, volume ratio 1.08)``: what the report's
+    summary counts (the types before the first space) and the deviation."""
+    kinds = "+".join(f.type for f in chosen.fits)
+    dev = chosen.deviation
+    mm = dev.hausdorff_m * 1e3
+    return f"{kinds} (Hausdorff {mm:.1f} mm, volume ratio {dev.volume_ratio:.2f})"
+
+
+def _fit_candidates(
+    loaded: LoadedMesh, merged: str, cache: DecompositionCache | None
+) -> list[primitives.Candidate]:
+    """Every primitive-fit candidate of the mesh, from the cache when it has them."""
+    key = cache_key(loaded.sha256, f"primitive-fits:{merged}", _fit_params())
+    if cache is not None:
+        stored = cache.load_fits(key)
+        if stored is not None:
+            return stored
+    vertices = np.ascontiguousarray(loaded.merged.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(loaded.merged.faces, dtype=np.int64)
+    # plain floats, as the cache gives them back: a warm run writes the same bytes
+    cands = [_plain(c) for c in primitives.candidates(vertices, faces, sets=True)]
+    if cache is not None:
+        cache.store_fits(key, cands)
+    return cands
+
+
+def _plain(c: primitives.Candidate) -> primitives.Candidate:
+    def floats(values: tuple[float, ...]) -> tuple[float, ...]:
+        return tuple(float(v) for v in values)
+
+    fits = tuple(
+        primitives.Fit(
+            type=f.type,
+            pos=floats(f.pos),  # type: ignore[arg-type]
+            quat=floats(f.quat),  # type: ignore[arg-type]
+            size=floats(f.size),
+        )
+        for f in c.fits
+    )
+    dev = primitives.Deviation(
+        hausdorff_m=float(c.deviation.hausdorff_m),
+        uncovered_m=float(c.deviation.uncovered_m),
+        volume_ratio=float(c.deviation.volume_ratio),
+    )
+    return primitives.Candidate(fits=fits, deviation=dev, cost=float(c.cost))
+
+
+@functools.cache
+def _fit_params() -> dict[str, str]:
+    """What stored fit candidates depend on besides the mesh: the fitting code itself
+    (any change to it refits) and scipy's version (the other libraries are in every key)."""
+    import hashlib
+
+    import scipy
+
+    source = Path(primitives.__file__).read_bytes()
+    return {"fitting": hashlib.sha256(source).hexdigest(), "scipy": scipy.__version__}
+
+
+def _hull_plan(
+    loaded: LoadedMesh,
+    label: str,
+    stem: str,
+    hull_key: str,
+    shape: CollisionShape,
+    cache: DecompositionCache | None,
+    notes: list[Note],
+) -> _Plan:
+    """The convex hull, whatever the hull gap (shapes ``hull`` and ``primitive``)."""
+    stored = cache.load_hull(hull_key) if cache is not None else None
+    if stored is not None:
+        notes.append(Note("hull", label, f"convex hull (collision shape {shape})"))
+        return _Plan("hull", label, stem, pieces=(stored,))
+    mesh = as_trimesh(loaded.merged)
+    if len(mesh.faces) == 0:
+        notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
+        return _Plan("none", label, stem)
+    hull = convex_hull(mesh.vertices)
+    if hull is None:
+        return _flat(label, stem, mesh.vertices, notes)
+    if cache is not None:
+        cache.store_hull(hull_key, hull)
+    notes.append(Note("hull", label, f"convex hull (collision shape {shape})"))
+    return _Plan("hull", label, stem, pieces=(hull,))
 
 
 def _flat(label: str, stem: str, vertices: np.ndarray, notes: list[Note]) -> _Plan:

@@ -1,5 +1,8 @@
 """Disk cache of convex decompositions, so a second conversion decomposes nothing.
 
+It also keeps hull gaps, convex hulls and primitive-fit candidates (JSON, checked
+field by field on reading), so that a warm conversion neither measures nor fits.
+
 One ``.npz`` file per decomposition, named by a key that hashes everything the
 result depends on: the mesh (its content hash and the exact arrays handed to
 CoACD), the CoACD parameters, the versions of coacd, trimesh and numpy, and
@@ -13,6 +16,7 @@ again and the entry rewritten. Nothing here is ever fatal.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import io
@@ -29,6 +33,7 @@ import numpy as np
 from ...cache import check_environment, default_cache_dir, make_key, read_entry, write_entry
 from ...ir import MeshData
 from ...untrusted import excerpt
+from .primitives import Candidate, Deviation, Fit
 
 __all__ = ["DecompositionCache", "array_digest", "cache_key", "default_cache_dir"]
 
@@ -40,6 +45,12 @@ CACHE_FORMAT = 1
 _SUBDIR = "coacd"
 _GAP_SUBDIR = "hull_gap"
 _HULL_SUBDIR = "hulls"
+_FIT_SUBDIR = "primitive_fits"
+
+_FIT_SIZES = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3}
+"""Primitive type -> the number of MuJoCo half sizes it takes."""
+MAX_CANDIDATES = 1_000
+"""More candidates (and primitives in one candidate) than any fit proposes."""
 
 
 @functools.cache  # importlib.metadata reads the disk: once per process, not once per mesh
@@ -134,12 +145,98 @@ class DecompositionCache:
             return None
         return value if math.isfinite(value) and value >= 0.0 else None
 
+    def load_fits(self, key: str) -> list[Candidate] | None:
+        """Stored primitive-fit candidates, or None when absent or not exactly what
+        :meth:`store_fits` writes (types, counts, finite numbers, positive sizes)."""
+        raw = read_entry(self.dir.parent / _FIT_SUBDIR / f"{key}.json")
+        if raw is None:
+            return None
+        try:
+            return _decode_fits(json.loads(raw), key)
+        except Exception as exc:  # truncated, garbage or inconsistent: a miss, refitted
+            message = excerpt(str(exc), 200)
+            logger.info("ignoring corrupt primitive-fit entry %s (%s); fitting again", key, message)
+            return None
+
+    def store_fits(self, key: str, cands: list[Candidate]) -> None:
+        entry = {
+            "key": key,
+            "candidates": [
+                {
+                    "fits": [
+                        {"type": f.type, "pos": f.pos, "quat": f.quat, "size": f.size}
+                        for f in c.fits
+                    ],
+                    "deviation": dataclasses.asdict(c.deviation),
+                    "cost": c.cost,
+                }
+                for c in cands
+            ],
+        }
+        write_entry(self.dir.parent / _FIT_SUBDIR, f"{key}.json", json.dumps(entry).encode())
+
     def store_gap(self, key: str, gap: float) -> None:
         write_entry(
             self.dir.parent / _GAP_SUBDIR,
             f"{key}.json",
             json.dumps({"key": key, "gap": gap}).encode(),
         )
+
+
+def _finite(value: Any, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{what} is not a number")
+    x = float(value)  # OverflowError for an int of a thousand digits: a miss too
+    if not math.isfinite(x):
+        raise ValueError(f"{what} is not finite")
+    return x
+
+
+def _numbers(value: Any, count: int, what: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != count:
+        raise ValueError(f"{what} is not {count} numbers")
+    return tuple(_finite(v, what) for v in value)
+
+
+def _decode_fits(data: Any, key: str) -> list[Candidate]:
+    """The candidates of a primitive-fit entry; ValueError unless it is exactly what
+    :meth:`DecompositionCache.store_fits` writes."""
+    if not isinstance(data, dict) or set(data) != {"key", "candidates"} or data["key"] != key:
+        raise ValueError("not an entry of this key")
+    raw = data["candidates"]
+    if not isinstance(raw, list) or len(raw) > MAX_CANDIDATES:
+        raise ValueError("candidates is not a list of the expected length")
+    out = []
+    for i, c in enumerate(raw):
+        if not isinstance(c, dict) or set(c) != {"fits", "deviation", "cost"}:
+            raise ValueError(f"candidate {i} has other keys")
+        fits_raw = c["fits"]
+        if not isinstance(fits_raw, list) or not 1 <= len(fits_raw) <= MAX_CANDIDATES:
+            raise ValueError(f"candidate {i} has no fits")
+        fits = []
+        for f in fits_raw:
+            if not isinstance(f, dict) or set(f) != {"type", "pos", "quat", "size"}:
+                raise ValueError(f"candidate {i} has a malformed fit")
+            kind = f["type"]
+            if not isinstance(kind, str) or kind not in _FIT_SIZES:
+                raise ValueError(f"candidate {i} has an unknown type")
+            quat = _numbers(f["quat"], 4, "quat")
+            size = _numbers(f["size"], _FIT_SIZES[kind], "size")
+            if not math.isclose(math.hypot(*quat), 1.0, abs_tol=1e-6) or min(size) <= 0:
+                raise ValueError(f"candidate {i} has a bad rotation or size")
+            pos = _numbers(f["pos"], 3, "pos")
+            fits.append(Fit(type=kind, pos=pos, quat=quat, size=size))  # type: ignore[arg-type]
+        dev = c["deviation"]
+        names = ("hausdorff_m", "uncovered_m", "volume_ratio")
+        if not isinstance(dev, dict) or set(dev) != set(names):
+            raise ValueError(f"candidate {i} has a malformed deviation")
+        values = [_finite(dev[n], n) for n in names]
+        if min(values) < 0:
+            raise ValueError(f"candidate {i} has a negative deviation")
+        deviation = Deviation(hausdorff_m=values[0], uncovered_m=values[1], volume_ratio=values[2])
+        cost = _finite(c["cost"], "cost")
+        out.append(Candidate(fits=tuple(fits), deviation=deviation, cost=cost))
+    return out
 
 
 def _encode(key: str, parts: list[MeshData]) -> bytes:
