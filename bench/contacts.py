@@ -3,11 +3,13 @@
     python bench/contacts.py                   # every example-robot-data robot, 3 pairs each
     python bench/contacts.py --every 4 --pairs 1
     python bench/contacts.py --json out.json   # also the per-robot figures
+    python bench/contacts.py --shape primitive # primitives whatever their deviation
 
 Each example-robot-data robot is converted twice into its own scene (floor through
 its lowest point): with the default collision shapes (``decompose``: hulls, CoACD
 parts where a mesh is concave) and with ``--collision-shape auto`` (a fitted primitive
-where one is within the tolerance, else the same hull or parts). Each scene is then
+where one is within the tolerance, else the same hull or parts; ``--shape`` picks
+another strategy to compare). Each scene is then
 stepped for ``--seconds`` of simulated time from its home keyframe, on one core, with
 random controls (each actuator's target uniform in its control range, drawn anew
 every 0.1 s, seed 0: both variants get the same sequence); a robot without actuators
@@ -37,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench.machine import line as machine_line  # noqa: E402
 
-VARIANTS = ("decompose", "auto")
+BASE = "decompose"
 CONTROL_PERIOD = 0.1
 """Seconds between two draws of the random controls."""
 
@@ -100,7 +102,11 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated per timing")
     parser.add_argument("--every", type=int, default=1, help="take every N-th robot")
     parser.add_argument("--json", type=Path, help="also write the per-robot figures here")
+    parser.add_argument(
+        "--shape", default="auto", choices=("auto", "primitive", "hull"), help="against default"
+    )
     args = parser.parse_args()
+    variants = (BASE, args.shape)
 
     import urdf2mjcf
     from tests.corpus import example_robot_data_share, example_robot_data_urdfs, first_line
@@ -109,14 +115,14 @@ def main() -> int:
     robots = example_robot_data_urdfs()[:: args.every]
     figures: dict[str, dict] = {}
     refused: dict[str, str] = {}
-    totals: dict[str, dict[str, int]] = {v: {} for v in VARIANTS}
+    totals: dict[str, dict[str, int]] = {v: {} for v in variants}
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
         scenes: dict[str, dict[str, Path]] = {}
         for urdf in robots:
             name = label(urdf)
             try:
-                for variant in VARIANTS:
+                for variant in variants:
                     out = tmp / variant / name / "robot.xml"
                     report = urdf2mjcf.convert(
                         urdf,
@@ -144,14 +150,14 @@ def main() -> int:
         for name, pair in scenes.items():
             ratios = []
             for _ in range(args.pairs):
-                base, _n = steps_per_second(pair["decompose"], args.seconds)
-                auto, _n = steps_per_second(pair["auto"], args.seconds)
+                base, _n = steps_per_second(pair[BASE], args.seconds)
+                auto, _n = steps_per_second(pair[args.shape], args.seconds)
                 ratios.append(auto / base)
                 figures[name].setdefault("steps_per_s", []).append([base, auto])
             figures[name]["speedup"] = statistics.median(ratios)
 
     speedups = sorted(f["speedup"] for f in figures.values())
-    worst = max(figures.items(), key=lambda kv: kv[1]["auto"]["worst_hausdorff_mm"])
+    worst = max(figures.items(), key=lambda kv: kv[1][args.shape]["worst_hausdorff_mm"])
     print(f"machine: {machine_line()}")
     print(f"robots: {len(figures)} (refused: {len(refused)}), pairs: {args.pairs}, "
           f"{args.seconds:g} s simulated per timing")  # fmt: skip
@@ -160,19 +166,19 @@ def main() -> int:
     q = np.percentile(speedups, [0, 25, 50, 75, 100]) if speedups else [float("nan")] * 5
     lo, q1, median, q3, hi = (float(x) for x in q)
     print(
-        f"speed-up auto / default: median {median:.2f}x (min {lo:.2f}, "
+        f"speed-up {args.shape} / default: median {median:.2f}x (min {lo:.2f}, "
         f"quartiles {q1:.2f}-{q3:.2f}, max {hi:.2f})"
     )
-    for variant in VARIANTS:
+    for variant in variants:
         parts = ", ".join(f"{n} {k}" for k, n in sorted(totals[variant].items()))
         print(f"shapes with {variant}: {parts}")
     print(
-        f"worst link under auto: {worst[0]} {worst[1]['auto']['worst_link']}: "
-        f"{worst[1]['auto']['worst_hausdorff_mm']:.1f} mm "
-        f"(default: {worst[1]['decompose']['worst_hausdorff_mm']:.1f} mm)"
+        f"worst link under {args.shape}: {worst[0]} {worst[1][args.shape]['worst_link']}: "
+        f"{worst[1][args.shape]['worst_hausdorff_mm']:.1f} mm "
+        f"(default: {worst[1][BASE]['worst_hausdorff_mm']:.1f} mm)"
     )
-    failing = [n for n, f in figures.items() if not f["auto"]["certificate_passed"]]
-    print(f"certificates failing under auto: {len(failing)} {failing}")
+    failing = [n for n, f in figures.items() if not f[args.shape]["certificate_passed"]]
+    print(f"certificates failing under {args.shape}: {len(failing)} {failing}")
     if args.json:
         args.json.write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
     return 0

@@ -52,3 +52,16 @@ def test_the_jitter_the_docs_state_is_the_published_recipes():
         f"the mockups move within +-{mockup['position']:.2f} m and +-{deg(mockup)} degrees, "
         f"the CTB within +-{ctb['position']:.2f} m and +-{deg(ctb)} degrees"
     ) in envs
+
+
+def test_the_primitive_defaults_the_docs_state_are_the_codes():
+    from urdf2mjcf.passes.collision import CollisionConfig
+
+    cfg = CollisionConfig()
+    for page in ("cli.md", "passes.md"):
+        text = " ".join((DOCS / page).read_text().split())
+        near = r"`{}(?: \w+)?`[^(]{{0,200}}\(default ([\d.]+)"
+        (mm,) = set(re.findall(near.format("--primitive-tolerance"), text))
+        (ratio,) = set(re.findall(near.format("--primitive-volume-ratio"), text))
+        assert float(mm) == cfg.primitive_tolerance_mm, page
+        assert float(ratio) == cfg.primitive_volume_ratio, page
