@@ -73,6 +73,9 @@ def start_trials(facility: Path, tmp_path: Path) -> tuple[subprocess.Popen, set[
     tmp.mkdir()
     code = (  # SIGUSR1: the stacks of a command that did not stop, for the failure
         "import faulthandler, signal; faulthandler.register(signal.SIGUSR1, all_threads=True)\n"
+        # Ctrl-C as a terminal's shell gives it: Python keeps SIGINT ignored when the
+        # process that started it ignored it, as a test runner's worker may
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         "from urdf2mjcf.cli import facility_demo_main; facility_demo_main()"
     )
     proc = subprocess.Popen(
