@@ -14,6 +14,7 @@ from .cache import default_cache_dir
 from .certify import Certificate, CertificateFailed, CertifyConfig
 from .certify.tolerances import Tolerances
 from .errors import ConversionError, OutputError
+from .fmt import mjcf_bytes
 from .ir import Model, UrdfDocument
 from .passes import (
     actuators,
@@ -159,23 +160,31 @@ def make_options(
     )
 
 
+ModelPass = Callable[[emit.EmitResult], emit.EmitResult]
+"""A pass on the MJCF document in memory, after ``extension`` and before it is written
+and validated (the facility's fold and tags): it returns a new result, changing a copy
+(:meth:`~urdf2mjcf.passes.emit.EmitResult.edit`) where it changes anything."""
+
+
 def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
-    """Run passes 1-6 in memory: no file is written."""
-    _doc, model, result = _build(source, options)
+    """Run the passes up to ``extension`` in memory: no file is written. The result holds
+    the MJCF document as an element tree (``result.root``; ``result.xml``: as written)."""
+    _doc, model, result = _build(source, options, mjmodel.HomeCompiles())
     return model, result
 
 
 def _build(
-    source: str | Path, options: ConvertOptions
+    source: str | Path, options: ConvertOptions, compiles: mjmodel.HomeCompiles
 ) -> tuple[UrdfDocument, Model, emit.EmitResult]:
-    """:func:`build`, and the xacro pass's document (the certificate's reference reads it)."""
+    """:func:`build`, and the xacro pass's document (the certificate's reference reads it).
+    ``compiles``: the conversion's compile that the scene pass may reuse."""
     mjmodel.make_room()  # before the first compile of this conversion
     doc = xacro.run(Path(source), options.xacro)
     model = parse.run(doc, options.parse)
     model = meshes.run(model, options.meshes)
     model = collision.run(model, options.collision)
     model = inertia.run(model, options.inertia)
-    model = actuators.run(model, options.actuators)
+    model = actuators.run(model, options.actuators, compiles)
     model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
@@ -186,6 +195,8 @@ def convert(
     source: str | Path,
     output: str | Path,
     options: ConvertOptions | None = None,
+    *,
+    model_passes: Sequence[ModelPass] = (),
     **kwargs: Any,
 ) -> Report:
     """Convert a URDF or xacro file into ``output`` (an ``.xml`` path).
@@ -193,8 +204,10 @@ def convert(
     Writes ``output``, its meshes and textures under ``assets/`` beside it and,
     unless ``scene=False``, a ``scene.xml`` that includes it. Either pass a
     :class:`ConvertOptions` or keyword options (see :func:`make_options`).
-    Raises a :class:`~urdf2mjcf.errors.ConversionError` on bad input; then
-    nothing has been written.
+    ``model_passes`` run, in order, on the document in memory before it is written
+    and validated (:data:`ModelPass`). Raises a
+    :class:`~urdf2mjcf.errors.ConversionError` on bad input; then nothing has been
+    written.
     """
     if options is None:
         options = make_options(**kwargs)
@@ -209,14 +222,22 @@ def convert(
         )
     out.check_target(output, options.overwrite, (scene_name,) if options.scene else ())
 
-    doc, model, result = _build(source, options)
+    compiles = mjmodel.HomeCompiles()
+    doc, model, result = _build(source, options, compiles)
+    for step in model_passes:
+        result = step(result)
+    # Each document becomes text once, here, by our one writer; validation compiles
+    # these bytes, and they are what is installed.
     files = dict(result.files)
     files[output.name] = result.xml
+    documents = {output.name: result.root}  # the trees the twin is made from
     check = output
     if options.scene:
-        files[scene_name] = scene.run(
-            result, output.name, options.emit.model_name or model.robot.name
+        around = scene.run(
+            result, output.name, options.emit.model_name or model.robot.name, compiles
         )
+        files[scene_name] = mjcf_bytes(around)
+        documents[scene_name] = around
         check = output.with_name(scene_name)
     validated: list = []
     certificates: list[Certificate] = []
@@ -227,7 +248,11 @@ def convert(
         wanted = cfg.enforce or (cfg.enabled and options.validate.enabled)
         # the certificate's passive second is stepped by validation, beside its own
         checks = replace(options.validate, passive_second=wanted)
-        validated.append(validate.run(staged_target, checks, report_as=check, files=list(files)))
+        validated.append(
+            validate.run(
+                staged_target, checks, report_as=check, files=list(files), documents=documents
+            )
+        )
         if wanted:
             # the staged files, before they are installed: --verify can still refuse them
             v = validated[0]

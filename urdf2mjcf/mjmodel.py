@@ -11,11 +11,13 @@ MuJoCo would process, so the full robot is compiled once, by validation. The
 scene pass needs only where bodies and geoms are at home, which the actuators
 pass's model already says when the documents differ only in actuators,
 sensors, sites and cameras: then it is reused, not compiled again
-(``shape_only``). And the compiles share the mesh work: MuJoCo caches
-processed mesh assets per process, keyed by asset name and content, so every
-compile here goes through memory with the same relative names
-(``assets/<name>``) and the later ones skip decoding and processing the
-meshes an earlier one did.
+(``shape_only``, through the conversion's :class:`HomeCompiles`). Every
+function here takes a document as bytes or as the element tree the passes
+hand on, and compiles a copy: the document itself is never changed. And the
+compiles share the mesh work: MuJoCo caches processed mesh assets per
+process, keyed by asset name and content, so every compile here goes through
+memory with the same relative names (``assets/<name>``) and the later ones
+skip decoding and processing the meshes an earlier one did.
 """
 
 from __future__ import annotations
@@ -79,8 +81,60 @@ def compile_xml(
         return mujoco.MjModel.from_xml_string(text, dict(files))
 
 
-_last: tuple[bytes, dict[str, bytes], Any] | None = None
-"""(shape, files, model) of the last :func:`compile_home` in this process."""
+Document = Any
+"""An MJCF document: its bytes, or its root element in memory (lxml), left unchanged."""
+
+
+def _tree(doc: Document) -> Any:
+    """A root element of ``doc`` that the caller may change (a copy of a tree)."""
+    import copy
+
+    from lxml import etree
+
+    if isinstance(doc, (bytes, str)):
+        data = doc if isinstance(doc, bytes) else doc.encode()
+        # huge_tree: libxml2 otherwise stops at 256 nested elements, a chain of ~250 links
+        return etree.fromstring(data, etree.XMLParser(remove_blank_text=True, huge_tree=True))
+    root = copy.deepcopy(doc)
+    for el in root.iter():  # as the parser above leaves it: no whitespace-only text
+        if el.text is not None and not el.text.strip():
+            el.text = None
+        if el.tail is not None and not el.tail.strip():
+            el.tail = None
+    return root
+
+
+def _text(doc: Document) -> bytes:
+    from lxml import etree
+
+    return (
+        doc
+        if isinstance(doc, bytes)
+        else doc.encode()
+        if isinstance(doc, str)
+        else etree.tostring(doc)
+    )
+
+
+class HomeCompiles:
+    """One conversion's last :func:`compile_home`, for the next one of the same shape.
+
+    The actuators pass compiles the robot to size its gains; the scene pass needs only
+    where the same bodies and geoms are at home. A conversion makes one of these and
+    hands it to both (no model outlives its conversion)."""
+
+    def __init__(self) -> None:
+        self._last: tuple[bytes, dict[str, bytes], Any] | None = None
+        self._lock = threading.Lock()
+
+    def get(self, key: bytes, files: Mapping[str, bytes]) -> Any:
+        with self._lock:
+            last = self._last
+        return last[2] if last is not None and last[0] == key and last[1] == files else None
+
+    def put(self, key: bytes, files: Mapping[str, bytes], m: Any) -> None:
+        with self._lock:
+            self._last = (key, dict(files), m)
 
 
 def make_room() -> None:
@@ -95,9 +149,6 @@ def make_room() -> None:
     """
     import mujoco
 
-    global _last
-    with LOCK:
-        _last = None  # another conversion: no model of the last one is kept alive
     get_cache = getattr(mujoco, "mj_getCache", None)  # a MuJoCo without it: nothing to do
     if get_cache is None:
         return
@@ -119,38 +170,37 @@ def home_data(m: Any) -> Any:
 
 
 def compile_home(
-    xml: bytes | str,
+    xml: Document,
     files: Mapping[str, bytes],
     *,
     shape_only: bool = False,
     collision_only: bool = False,
+    compiles: HomeCompiles | None = None,
 ) -> tuple[Any, Any]:
-    """(model, data at home) of ``xml`` with ``files``; raises MuJoCo's ``ValueError``.
+    """(model, data at home) of the document ``xml`` with ``files``; raises MuJoCo's
+    ``ValueError``. The document itself is left as it is: a copy is compiled.
 
     ``collision_only``: the caller reads the dynamics and the colliding geoms,
-    never a visual one: the document is compiled without its visual geoms
-    where :func:`without_visuals` finds that safe. ``shape_only``: the caller
-    reads only where bodies and geoms are at home: the model of the previous
-    call is returned when its document had the same :func:`shape` and the
-    same files, instead of compiling this one.
+    never a visual one: the document is compiled without its visual geoms where
+    :func:`without_visuals` finds that safe. ``compiles``: where this conversion keeps
+    its last compile; with ``shape_only`` (the caller reads only where bodies and geoms
+    are at home), the model kept there is returned when its document had the same
+    :func:`shape` and the same files, instead of compiling this one.
     """
-    global _last
-    whole = xml if isinstance(xml, bytes) else xml.encode()
-    doc = (without_visuals(whole) if collision_only else None) or whole
-    key = shape(doc)
-    with LOCK:
-        last = _last
-    if shape_only and last is not None and last[0] == key and last[1] == files:
-        m = last[2]
-    else:
+    lean = without_visuals(xml) if collision_only else None
+    doc = lean if lean is not None else xml
+    key = shape(doc) if compiles is not None else b""
+    m = compiles.get(key, files) if compiles is not None and shape_only else None
+    if m is None:
         try:
-            m = compile_xml(doc, files if doc is whole else files_named(files, doc))
+            text = _text(doc)
+            m = compile_xml(text, files if lean is None else files_named(files, text))
         except ValueError:
-            if doc is whole:
+            if lean is None:
                 raise
-            m = compile_xml(whole, files)  # something used what we left out: its error, if any
-    with LOCK:
-        _last = (key, dict(files), m)
+            m = compile_xml(_text(xml), files)  # something used what we left out: its error, if any
+    if compiles is not None:
+        compiles.put(key, files, m)
     return m, home_data(m)
 
 
@@ -165,9 +215,11 @@ def files_named(files: Mapping[str, bytes], *docs: bytes) -> dict[str, bytes]:
     return {name: data for name, data in files.items() if name.rsplit("/", 1)[-1] in named}
 
 
-def without_visuals(xml: bytes) -> bytes | None:
+def without_visuals(xml: Document) -> Any:
     """``xml`` without its visual geoms and the meshes, materials and texture files
-    only they use; None where that could change the dynamics or the contacts.
+    only they use (bytes for bytes, a new tree for a tree); None where that could
+    change the dynamics or the contacts. This is the physics twin that validation
+    steps and the passes compile.
 
     Safe for emit's documents: bodies take their mass from ``<inertial>`` alone
     (``inertiafromgeom="false"``) and the ``visual`` default class neither
@@ -176,7 +228,7 @@ def without_visuals(xml: bytes) -> bytes | None:
     """
     from lxml import etree
 
-    root = etree.fromstring(xml, etree.XMLParser(huge_tree=True))
+    root = _tree(xml)
     compiler = root.find("compiler")
     visual = root.find(".//default[@class='visual']/geom")
     if (
@@ -214,17 +266,16 @@ def without_visuals(xml: bytes) -> bytes | None:
             skybox = el.get("type") == "skybox"  # used by being there
             if el.get("file") and not skybox and el.get("name") not in textures:
                 section.remove(el)
-    return etree.tostring(root)
+    return etree.tostring(root) if isinstance(xml, (bytes, str)) else root
 
 
-def shape(xml: bytes | str) -> bytes:
+def shape(xml: Document) -> bytes:
     """The document without what moves or shapes nothing: actuators, sensors,
     ``<visual>``, sites, cameras, the model name and the keyframes' controls.
     Two documents of one shape put every body and geom in the same place."""
     from lxml import etree
 
-    data = xml if isinstance(xml, bytes) else xml.encode()
-    root = etree.fromstring(data, etree.XMLParser(remove_blank_text=True, huge_tree=True))
+    root = _tree(xml)
     root.attrib.pop("model", None)
     for tag in ("actuator", "sensor", "visual"):
         for el in root.findall(tag):

@@ -43,12 +43,16 @@ def built(reports) -> dict[str, Path]:
 @pytest.mark.parametrize("recipe", [p.stem for p in RECIPES])
 def test_what_is_written_is_what_was_validated(reports, recipe):
     """The scene.xml on disk, compiled again, is bit for bit the model validation
-    stepped (folding and tags change the scene after the conversion's validation)."""
+    stepped: folding and tags are passes on the scene in memory, before the
+    conversion validates and writes it, and nothing validates it again."""
     report = reports[recipe]
-    assert report.compiled is not None
+    assert report.compiled is not None and report.compiled is report.conversion.compiled
     written = mujoco.MjModel.from_xml_path(str(report.output / "scene.xml"))
     assert differences(written, report.compiled) == []
-    assert differences(written, report.conversion.compiled) != [], "fold and tags changed nothing"
+    folded = report.manifest.get("folded_geoms", {})
+    assert folded and all(written.geom(g).bodyid[0] != written.body(b).id for g, b in folded.items())
+    tags = [f"{e['family']}_{e['id']}" for e in report.manifest["fiducials"]]
+    assert tags and all(written.geom(name).matid[0] >= 0 for name in tags)
 
 
 def _load(folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, dict]:
@@ -282,8 +286,9 @@ def test_same_seed_gives_identical_files_and_other_seeds_move_only_jittered_pose
 
 
 def test_the_scene_as_written_is_stepped_after_folding_and_tags(tmp_path, monkeypatch):
-    """Validation (compile and step) runs twice: the conversion's, then on the scene
-    as folding and tags left it; the model the build reports is the second's."""
+    """Validation (compile and step) runs once, on the scene as folding and tags left
+    it in memory: the text it compiled is the text written, and the model the build
+    reports is the one it stepped."""
     from urdf2mjcf.passes import validate
 
     calls: list[tuple[str, object]] = []
@@ -297,8 +302,9 @@ def test_the_scene_as_written_is_stepped_after_folding_and_tags(tmp_path, monkey
     monkeypatch.setattr(validate, "run", spy)
     recipe = load_recipe(ROOT / "recipes" / "imetro-no-robot.yaml")
     report = build_facility(recipe, tmp_path / "f", root=ROOT, components=False)
-    assert len(calls) == 2
-    (first, _), (last, result) = calls
+    assert len(calls) == 1
+    ((validated, result),) = calls
     written = (report.output / "scene.xml").read_text()
-    assert last == written != first  # the second validated the final text
+    assert validated == written
+    assert "tag36h11_" in written and report.manifest.get("folded_geoms")
     assert result is not None and result.steps > 0 and report.compiled is result.model

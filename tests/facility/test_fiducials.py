@@ -14,11 +14,13 @@ import cv2
 import mujoco
 import numpy as np
 import pytest
+from lxml import etree
 
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility import fiducials
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe, parse_recipe
+from urdf2mjcf.fmt import mjcf_bytes
 from urdf2mjcf.schema import load
 from urdf2mjcf.transforms import rpy_to_matrix
 
@@ -214,11 +216,17 @@ def test_a_tag_on_a_link_the_facility_lacks_names_the_component(tmp_path: Path) 
         '<mujoco model="w">\n  <worldbody>\n    <body name="box_base">\n'
         '      <geom type="box" size="0.1 0.1 0.1"/>\n    </body>\n  </worldbody>\n</mujoco>\n'
     )
+    root, files = etree.fromstring(scene.read_bytes()), {}
     tag = fiducials.Fiducial(id=5, link="lid", xyz=(0, 0, 0.1), size=0.05)
     with pytest.raises(InputError, match=r"components\.box\.fiducials.*'lid'.*'box_lid'"):
-        fiducials.add_to_scene(scene, [("box", "box_", tag)], recipe="r.yaml")
+        fiducials.add_to_scene(root, files, [("box", "box_", tag)], recipe="r.yaml")
     good = fiducials.Fiducial(id=5, link="base", xyz=(0, 0, 0.1), size=0.05)
-    fiducials.add_to_scene(scene, [("box", "box_", good)])
+    fiducials.add_to_scene(root, files, [("box", "box_", good)])
+    assert [n.startswith("assets/tag36h11_5") and n.endswith(".png") for n in files] == [True]
+    scene.write_bytes(mjcf_bytes(root))
+    for name, data in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes(data)
     m = mujoco.MjModel.from_xml_path(str(scene))  # MuJoCo compiles what we wrote
     g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "tag36h11_5")
     assert (m.geom_contype[g], m.geom_conaffinity[g], m.geom_group[g]) == (0, 0, 2)

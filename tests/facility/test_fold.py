@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from lxml import etree
 
 from tests.facility.test_collision_filtering import (
     home,
@@ -26,6 +27,7 @@ from tests.facility.test_collision_filtering import (
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.fold import fold_fixtures
 from urdf2mjcf.facility.recipe import load_recipe
+from urdf2mjcf.fmt import mjcf_bytes
 from urdf2mjcf.runner.load import load as load_facility
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -213,11 +215,20 @@ SMALL = """<mujoco>
 """
 
 
+def _fold_file(path, m):
+    """Fold the document in ``path`` (compiled as ``m``) and write it back, as the build
+    writes its scene: by our one writer."""
+    root = etree.fromstring(path.read_bytes())
+    folded = fold_fixtures(root, m)
+    path.write_bytes(mjcf_bytes(root))
+    return folded
+
+
 def test_what_moves_and_where(tmp_path):
     scene = tmp_path / "scene.xml"
     scene.write_text(SMALL)
     before = mujoco.MjModel.from_xml_path(str(scene))
-    folded = fold_fixtures(scene, before)
+    folded = _fold_file(scene, before)
     after = mujoco.MjModel.from_xml_path(str(scene))
     # panel and post into root (no joint between), knob into the door (its weld body);
     # the handle's frame is given by euler (not composed here), the mount collides with
@@ -254,8 +265,8 @@ def test_what_moves_and_where(tmp_path):
     # the file is rewritten deterministically: folding a fresh copy gives the same bytes
     again = tmp_path / "again.xml"
     again.write_text(SMALL)
-    fold_fixtures(again, before)
+    _fold_file(again, before)
     assert again.read_bytes() == scene.read_bytes()
     # folding what is folded moves nothing
-    again_folded = fold_fixtures(scene, after)
+    again_folded = _fold_file(scene, after)
     assert again_folded.moved == {} and again_folded.merged == []

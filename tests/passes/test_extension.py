@@ -521,8 +521,9 @@ def test_error_in_a_generated_element_inside_an_overridden_body_is_left_to_valid
     model, before, resolver = emitted(
         write(tmp_path, '<mujoco><override><body name="forearm" gravcomp="1"/></override></mujoco>')
     )
-    broken = before.xml.replace(b'name="forearm_collision"', b'name="forearm_collision" bogus="1"')
-    result = dataclasses.replace(before, xml=broken)
+    root = before.edit()
+    next(g for g in root.iter("geom") if g.get("name") == "forearm_collision").set("bogus", "1")
+    result = dataclasses.replace(before, root=root)
     after = extension.run(result, model, ExtensionConfig(resolver=resolver))
     with pytest.raises(ValueError, match="unrecognized attribute: 'bogus'"):
         compiled(after)

@@ -111,6 +111,15 @@ def test_the_twin_moves_as_the_whole_model_bit_for_bit(tmp_path):
     whole, physics = _trajectory(xml, files, 500), _trajectory(xml, twin, 500)
     assert whole[-1][-1] > 0, "the robot lands: contacts are part of what is compared"
     assert all(np.array_equal(a, b) for a, b in zip(whole, physics, strict=True))
+    # made from the tree the robot file was written from, the twin is the same model
+    from lxml import etree
+
+    tree = etree.fromstring(files["robot.xml"])
+    from_tree = _physics_files(files, {"robot.xml": tree})
+    assert from_tree is not None and set(from_tree) == {"robot.xml"}
+    assert etree.tostring(tree) == etree.tostring(etree.fromstring(files["robot.xml"]))
+    again = _trajectory(xml, from_tree, 500)
+    assert all(np.array_equal(a, b) for a, b in zip(whole, again, strict=True))
 
 
 def test_validation_steps_the_twin_and_reports_the_whole_model(tmp_path, spied):

@@ -27,7 +27,6 @@ import yaml
 from .. import api, bundle, untrusted
 from .. import output as out
 from ..errors import InputError
-from ..passes import validate
 from . import fiducials, fold
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
@@ -51,7 +50,7 @@ class FacilityReport:
     components: dict[str, Path] = field(default_factory=dict)
     compiled: Any = field(default=None, repr=False, compare=False)
     """The ``mujoco.MjModel`` of ``scene.xml`` as written, the one validation stepped
-    (the conversion's, or, where folding or tags changed the scene, its own)."""
+    (folding and tags are passes on the scene in memory, before it is validated)."""
 
 
 def _flag_text(value: object) -> str:
@@ -139,10 +138,20 @@ def build_facility(
         root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
     )
 
+    present = [n for n in table if n in moved]
+    # Passes on the scene in memory: what is written is what validation stepped.
+    folding = fold.Fold() if fold_fixtures else None
+    tagging = fiducials.Tags(
+        [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials],
+        recipe=recipe.path,
+    )
+    passes = [step for step in (folding, tagging) if step is not None]
+
     with out.staged_folder(output) as stage:
-        report = api.convert(top, stage / "scene.xml", args=args, scene=False, **options)
+        report = api.convert(
+            top, stage / "scene.xml", args=args, scene=False, model_passes=passes, **options
+        )
         built: dict[str, Path] = {}
-        present = [n for n in table if n in moved]
         if components:
             assets = sorted({table[n].asset: table[n] for n in present}.items())
             for asset, comp in assets:
@@ -157,23 +166,10 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
-        import mujoco
-
-        compiled = report.compiled
-        if compiled is None:
-            compiled = mujoco.MjModel.from_xml_path(str(stage / "scene.xml"))
-        folded = fold.fold_fixtures(stage / "scene.xml", compiled) if fold_fixtures else None
-        tags = [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials]
-        placed = fiducials.add_to_scene(stage / "scene.xml", tags, recipe=recipe.path)
-        changed = folded is not None and bool(folded.moved or folded.merged)
-        if placed or changed:
-            # the scene changed after the conversion validated it: what ships is
-            # validated again as written (compiled from the files and stepped)
-            validated = validate.run(
-                stage / "scene.xml", validate.ValidateConfig(), report_as=output / "scene.xml"
-            )
-            assert validated is not None  # enabled
-            compiled = validated.model
+        compiled = report.compiled  # validation's model of scene.xml as written
+        assert compiled is not None  # the facility is always validated
+        placed = tagging.placed
+        folded = folding.folded if folding is not None else None
         demo = _write_copies(stage, recipe, root)
         data = manifest(
             stage / "scene.xml",
@@ -184,7 +180,7 @@ def build_facility(
             offsets,
             built,
             roles,
-            compiled=compiled,  # the scene.xml written: validation's, or compiled after fold/tags
+            compiled=compiled,
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
             bundled={"recipe": bundle.RECIPE, "demo": demo},
         )

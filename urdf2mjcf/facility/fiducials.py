@@ -17,7 +17,8 @@ bottom-left at (-s/2, s/2), (s/2, s/2), (s/2, -s/2), (-s/2, -s/2)). ``size`` is 
 edge of the black square, the outline a detector measures; the plate is a quarter
 wider on each side, since the tag carries its one-cell white border (10 x 10 cells).
 
-The builder adds each tag to the compiled ``scene.xml`` as a PNG texture (the image
+The builder adds each tag to the facility's document, in memory before it is written
+and validated, as a PNG texture (the image
 of ``cv2.aruco.generateImageMarker``), a material and a thin visual-only box geom
 (no contacts, the visual group) on the link's body, whose +z face shows the tag. Ids
 are unique in a component table, so in every facility built from it.
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,6 +37,7 @@ import numpy as np
 from ..assets import content_name
 from ..errors import InputError
 from ..fmt import fmt_vec
+from ..passes.emit import EmitResult
 from ..transforms import quat_from_rpy, rpy_to_matrix
 from ..untrusted import excerpt
 from .pose import Pose2D
@@ -165,21 +167,6 @@ def tag_png(tag_id: int) -> bytes:
     return bytes(data.tobytes())
 
 
-def _indent(parent: Any, child: Any, index: int) -> None:
-    """Insert ``child`` at ``index`` of ``parent``, indented as its siblings (2 spaces)."""
-    depth = sum(1 for _ in parent.iterancestors()) + 1
-    pad = "\n" + "  " * depth
-    if len(parent) == 0:
-        parent.text = pad
-        child.tail = pad[:-2]
-    elif index >= len(parent):
-        child.tail = parent[-1].tail
-        parent[-1].tail = pad
-    else:
-        child.tail = pad
-    parent.insert(index, child)
-
-
 def _geom_index(body: Any) -> int:
     """Where an added geom goes: after the body's own elements, before its child bodies."""
     for i, el in enumerate(body):
@@ -188,21 +175,40 @@ def _geom_index(body: Any) -> int:
     return len(body)
 
 
+class Tags:
+    """The tags as a pass on the facility's document in memory (``api.ModelPass``):
+    each tag's texture, material and plate are added, its PNG goes among the
+    document's files; what was placed is left in :attr:`placed`."""
+
+    def __init__(
+        self, tags: Sequence[tuple[str, str, Fiducial]], recipe: Path | str | None = None
+    ) -> None:
+        self.tags = list(tags)
+        self.recipe = recipe
+        self.placed: list[tuple[str, str, Fiducial]] = []
+
+    def __call__(self, result: EmitResult) -> EmitResult:
+        if not self.tags:
+            return result
+        root = result.edit()
+        files = dict(result.files)
+        self.placed = add_to_scene(root, files, self.tags, recipe=self.recipe)
+        return replace(result, root=root, files=files)
+
+
 def add_to_scene(
-    scene: Path,
+    root: Any,
+    files: dict[str, bytes],
     tags: Sequence[tuple[str, str, Fiducial]],
     *,
     recipe: Path | str | None = None,
 ) -> list[tuple[str, str, Fiducial]]:
-    """Add ``tags`` (component, prefix, tag) to the MJCF file ``scene`` and write each
-    tag's PNG into its ``assets/`` folder; returns them with their body names as
-    (component, body, tag). A tag whose link the model lacks is an InputError naming
-    ``recipe`` and the component's key."""
+    """Add ``tags`` (component, prefix, tag) to the MJCF document ``root`` (changed in
+    place) and each tag's PNG to ``files`` (paths relative to the document); returns
+    them with their body names as (component, body, tag). A tag whose link the model
+    lacks is an InputError naming ``recipe`` and the component's key."""
     from lxml import etree
 
-    if not tags:
-        return []
-    root = etree.fromstring(scene.read_bytes())
     bodies = {b.get("name"): b for b in root.iter("body")}
     worldbody = root.find("worldbody")
     if worldbody is not None:
@@ -210,15 +216,14 @@ def add_to_scene(
     asset = root.find("asset")
     if asset is None:
         asset = etree.Element("asset")
-        _indent(root, asset, list(root).index(worldbody) if worldbody is not None else len(root))
+        root.insert(list(root).index(worldbody) if worldbody is not None else len(root), asset)
     visual_class = any(d.get("class") == "visual" for d in root.iter("default"))
     # Textures go where the model looks for them: its texturedir, else assets/.
     compiler = root.find("compiler")
     texdir = None
     if compiler is not None:
         texdir = compiler.get("texturedir") or compiler.get("assetdir")
-    folder = scene.parent / (texdir or "assets")
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = (texdir or "assets").rstrip("/")
     placed = []
     for component, prefix, tag in tags:
         body_name = "world" if tag.link == "world" else prefix + tag.link
@@ -227,19 +232,19 @@ def add_to_scene(
             raise InputError(
                 f"tag {tag.id} of '{component}' is on link '{tag.link}' (body '{body_name}'),"
                 " which the facility does not contain",
-                file=recipe or scene,
+                file=recipe or "scene.xml",
                 element=f"components.{component}.fiducials",
             )
         name = f"{FAMILY}_{tag.id}"
         png = tag_png(tag.id)
         file = content_name(name, png) + ".png"
-        (folder / file).write_bytes(png)
+        files[f"{folder}/{file}"] = png
         file = file if texdir else f"assets/{file}"
         texture = etree.Element("texture", name=name, type="2d", file=file)
         # No specular highlight: a glossy tag washes out under the headlight.
         material = etree.Element("material", name=name, texture=name, specular="0")
-        _indent(asset, texture, len(asset))
-        _indent(asset, material, len(asset))
+        asset.append(texture)
+        asset.append(material)
         rot = rpy_to_matrix(tag.rpy)
         # The plate lies behind the face: its centre half a thickness along -z of the tag.
         centre = np.asarray(tag.xyz) - rot[:, 2] * (THICKNESS / 2)
@@ -254,10 +259,8 @@ def add_to_scene(
         else:
             for key, value in (("contype", "0"), ("conaffinity", "0"), ("group", "2")):
                 geom.set(key, value)
-        _indent(body, geom, _geom_index(body))
+        body.insert(_geom_index(body), geom)
         placed.append((component, body_name, tag))
-    text = etree.tostring(root)
-    scene.write_bytes(text + b"\n")
     return placed
 
 

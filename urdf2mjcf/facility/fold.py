@@ -24,13 +24,14 @@ sensor (a touch sensor sums the contacts of its site's body), and never across a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from ..fmt import fmt_vec
+from ..mjmodel import compile_home
+from ..passes.emit import EmitResult
 
 MANIFEST_KEY = "folded_geoms"
 _ORIENTATIONS = ("euler", "axisangle", "xyaxes", "zaxis", "fromto")
@@ -130,17 +131,29 @@ def _twin(geom: Any, group: str | None) -> Any | None:
     return None
 
 
-def fold_fixtures(scene: Path, m: Any) -> Folded:
-    """Rewrite the MJCF file ``scene`` (compiled as ``m``) with its static fixture
-    geoms in their weld bodies (file order). A fixture whose visual twin (an unnamed
-    geom of the ``visual`` class with the same shape and pose on the same body) exists
-    takes over its material and group and the twin goes: one geom to pose and bound
-    instead of two, drawn the same."""
-    from lxml import etree
+class Fold:
+    """The fold as a pass on the facility's document in memory (``api.ModelPass``): it
+    compiles a copy to learn the bodies, welds and contact classes, and returns the
+    folded document; what it did is left in :attr:`folded`."""
 
-    from .fiducials import _indent
+    def __init__(self) -> None:
+        self.folded = Folded()
 
-    root = etree.fromstring(scene.read_bytes())
+    def __call__(self, result: EmitResult) -> EmitResult:
+        m, _ = compile_home(result.root, result.files)
+        root = result.edit()
+        self.folded = fold_fixtures(root, m)
+        if not (self.folded.moved or self.folded.merged):
+            return result
+        return replace(result, root=root)
+
+
+def fold_fixtures(root: Any, m: Any) -> Folded:
+    """Move the static fixture geoms of the MJCF document ``root`` (an element tree,
+    compiled as ``m``; changed in place) into their weld bodies, in document order. A
+    fixture whose visual twin (an unnamed geom of the ``visual`` class with the same
+    shape and pose on the same body) exists takes over its material and group and the
+    twin goes: one geom to pose and bound instead of two, drawn the same."""
     elements = {b.get("name"): b for b in root.iter("body") if b.get("name")}
     pinned = _pinned(m)
     group = _visual_group(root)
@@ -186,10 +199,8 @@ def fold_fixtures(scene: Path, m: Any) -> Folded:
             geom.set("quat", fmt_vec(pose[1]))
         target = chain[-1]
         _remove(owner, geom)
-        _indent(target, geom, _after_geoms(target))
+        target.insert(_after_geoms(target), geom)
         out.moved[name] = owner.get("name")
-    if out.moved or out.merged:
-        scene.write_bytes(etree.tostring(root) + b"\n")
     return out
 
 
@@ -200,10 +211,4 @@ def _after_geoms(body: Any) -> int:
 
 
 def _remove(parent: Any, child: Any) -> None:
-    """Remove ``child``, keeping its neighbours' indentation."""
-    i = list(parent).index(child)
-    if i > 0:
-        parent[i - 1].tail = child.tail
-    elif len(parent) > 1:
-        parent.text = child.tail
-    parent.remove(child)
+    parent.remove(child)  # lxml would keep its tail; the writer indents anyway

@@ -1,4 +1,8 @@
-"""The emit pass: :class:`~urdf2mjcf.ir.Model` -> MJCF text in MuJoCo Menagerie's style.
+"""The emit pass: :class:`~urdf2mjcf.ir.Model` -> an MJCF document in MuJoCo Menagerie's style.
+
+The document stays in memory as an element tree (:class:`EmitResult`): the passes
+after this one (extension, scene, the facility's fold and tags) change a copy of
+it, and it becomes text once, when it is written (:func:`urdf2mjcf.fmt.mjcf_bytes`).
 
 Every URDF link becomes a body of the same name and every joint keeps its
 name (fixed links are kept unless ``fuse_fixed``). A root link named
@@ -8,6 +12,8 @@ doubles round-trip; the output is a pure function of the model.
 
 from __future__ import annotations
 
+import copy
+import functools
 import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -17,7 +23,7 @@ import numpy as np
 from lxml import etree
 
 from ..errors import ValidationError
-from ..fmt import set_attrs
+from ..fmt import mjcf_bytes, set_attrs
 from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
 from ..transforms import (
     IDENTITY_QUAT,
@@ -57,12 +63,23 @@ class EmitConfig:
 
 @dataclass(frozen=True)
 class EmitResult:
-    xml: bytes
-    """The robot MJCF document."""
+    root: etree._Element
+    """The robot MJCF document (``<mujoco>``), in memory. Never changed once made: a
+    pass that changes the document works on a copy (:meth:`edit`) and returns a new
+    result."""
     files: dict[str, bytes]
     """Asset files by path relative to the MJCF file (``assets/<name>``)."""
     qpos_home: tuple[float, ...]
     notes: tuple[Note, ...] = ()
+
+    @functools.cached_property
+    def xml(self) -> bytes:
+        """The document as it is written: our one writer's bytes."""
+        return mjcf_bytes(self.root)
+
+    def edit(self) -> etree._Element:
+        """A copy of the document for a pass to change."""
+        return copy.deepcopy(self.root)
 
 
 # -- body tree ---------------------------------------------------------------
@@ -612,6 +629,4 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
             ctrl = [at.get(a.joint, 0.0) if a.kind == "position" else 0.0 for a in model.actuators]
             set_attrs(key, ctrl=ctrl)
 
-    etree.indent(mj, space="  ")
-    xml = etree.tostring(mj, encoding="utf-8", xml_declaration=False) + b"\n"
-    return EmitResult(xml=xml, files=files, qpos_home=qpos, notes=tuple(notes))
+    return EmitResult(root=mj, files=files, qpos_home=qpos, notes=tuple(notes))

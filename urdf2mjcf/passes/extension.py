@@ -205,8 +205,7 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
     extensions = [e for e in model.robot.extensions if e.tag == "mujoco"]
     if not cfg.enabled or not extensions:
         return result
-    # huge_tree: libxml2 otherwise stops at 256 nested elements, a chain of ~250 links
-    root = etree.fromstring(result.xml, etree.XMLParser(remove_blank_text=True, huge_tree=True))
+    root = result.edit()
     source = model.robot.source
     ctx = _Context(
         root=root,
@@ -224,11 +223,9 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
     if cfg.check or (keys and _joint_layout(root) != layout):
         _compile(ctx, keys, layout)
 
-    etree.indent(root, space="  ")
-    xml = etree.tostring(root, encoding="utf-8", xml_declaration=False) + b"\n"
     return replace(
         result,
-        xml=xml,
+        root=root,
         files=ctx.files,
         qpos_home=_home(root, result.qpos_home),
         notes=result.notes + tuple(ctx.notes),

@@ -15,20 +15,23 @@ from typing import Any
 import numpy as np
 from lxml import etree
 
-from ..fmt import set_attrs
-from ..mjmodel import compile_home
+from ..fmt import mjcf_bytes, set_attrs
+from ..mjmodel import HomeCompiles, compile_home
 from .emit import EmitResult
 
 
-def lowest_point(result: EmitResult) -> float | None:
-    """World z of the lowest collision geometry at the home keyframe (None: no geoms)."""
+def lowest_point(result: EmitResult, compiles: HomeCompiles | None = None) -> float | None:
+    """World z of the lowest collision geometry at the home keyframe (None: no geoms).
+    ``compiles``: the conversion's last compile, reused where it has the same shape."""
     import mujoco
 
-    m, d = compile_home(result.xml, result.files, shape_only=True, collision_only=True)
+    m, d = compile_home(
+        result.root, result.files, shape_only=True, collision_only=True, compiles=compiles
+    )
     mujoco.mj_kinematics(m, d)
     colliding = [g for g in range(m.ngeom) if m.geom_contype[g] or m.geom_conaffinity[g]]
     if not colliding:  # only visual geoms to go by: they were left out of that compile
-        m, d = compile_home(result.xml, result.files)
+        m, d = compile_home(result.root, result.files)
         mujoco.mj_kinematics(m, d)
     geoms = colliding or list(range(m.ngeom))
     if not geoms:
@@ -60,7 +63,12 @@ def _geom_bottom(m: Any, d: Any, g: int) -> float:
 
 
 def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
-    """The scene document; ``floor_z`` is the height of the floor plane."""
+    """The scene document as written; ``floor_z`` is the height of the floor plane."""
+    return mjcf_bytes(scene_root(robot_file, model_name, floor_z))
+
+
+def scene_root(robot_file: str, model_name: str, floor_z: float = 0.0) -> etree._Element:
+    """The scene document in memory; ``floor_z`` is the height of the floor plane."""
     mj = etree.Element("mujoco", model=f"{model_name} scene")
     set_attrs(etree.SubElement(mj, "include"), file=robot_file)
     set_attrs(etree.SubElement(mj, "statistic"), center=(0, 0, max(floor_z + 0.5, 0.3)), extent=1.5)
@@ -121,11 +129,13 @@ def scene_xml(robot_file: str, model_name: str, floor_z: float = 0.0) -> bytes:
         type="plane",
         material="scene_groundplane",
     )
-    etree.indent(mj, space="  ")
-    return etree.tostring(mj, encoding="utf-8") + b"\n"
+    return mj
 
 
-def run(result: EmitResult, robot_file: str, model_name: str) -> bytes:
-    lowest = lowest_point(result)
+def run(
+    result: EmitResult, robot_file: str, model_name: str, compiles: HomeCompiles | None = None
+) -> etree._Element:
+    """The scene document around the robot document ``result`` (written as ``robot_file``)."""
+    lowest = lowest_point(result, compiles)
     floor_z = min(0.0, lowest) if lowest is not None else 0.0
-    return scene_xml(robot_file, model_name, floor_z)
+    return scene_root(robot_file, model_name, floor_z)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,6 +72,7 @@ def run(
     *,
     report_as: Path | None = None,
     files: Sequence[str] | None = None,
+    documents: Mapping[str, Any] | None = None,
 ) -> ValidationResult | None:
     """Compile ``xml_path`` (all includes and assets beside it) and simulate it.
 
@@ -88,6 +89,8 @@ def run(
     trajectory bit for bit) in a thread while the whole model compiles: MuJoCo
     releases the GIL in both, and on two cores the stepping costs no time. The
     whole model is still compiled, and its sensors evaluated at home.
+    ``documents``: the MJCF files among ``files`` as the element trees they were
+    written from (name -> root): the twin is made from those, not parsed again.
     """
     if not cfg.enabled:
         return None
@@ -107,7 +110,7 @@ def run(
                     m = mujoco.MjModel.from_xml_path(str(xml_path))
                 else:
                     written = {name: (xml_path.parent / name).read_bytes() for name in files}
-                    physics = _physics_files(written)
+                    physics = _physics_files(written, documents or {})
                     if physics is not None:
                         twin = _Stepper(written[xml_path.name], physics, cfg, warnings)
                         twin.start()
@@ -236,15 +239,23 @@ def step_count(cfg: ValidateConfig, timestep: float) -> int:
     return max(1, int(round(wanted)))
 
 
-def _physics_files(written: dict[str, bytes]) -> dict[str, bytes] | None:
+def _physics_files(
+    written: dict[str, bytes], documents: Mapping[str, Any] | None = None
+) -> dict[str, bytes] | None:
     """``written`` with each MJCF document's visual geoms left out, where
     :func:`without_visuals` finds that safe, and only the files the documents
-    still name; None when no document has a visual geom to leave out."""
-    stripped = {
-        name: lean
-        for name, data in written.items()
-        if name.endswith(".xml") and (lean := without_visuals(data)) is not None
-    }
+    still name; None when no document has a visual geom to leave out. A document in
+    ``documents`` (its element tree) is stripped from the tree."""
+    from lxml import etree
+
+    stripped = {}
+    for name, data in written.items():
+        if not name.endswith(".xml"):
+            continue
+        tree = (documents or {}).get(name)
+        lean = without_visuals(tree if tree is not None else data)
+        if lean is not None:
+            stripped[name] = lean if tree is None else etree.tostring(lean)
     if not stripped:
         return None
     twin = {**written, **stripped}

@@ -109,7 +109,7 @@ import numpy as np
 
 from ...errors import ValidationError
 from ...ir import Actuator, Joint, JointTuning, Model, Note, Robot
-from ...mjmodel import compile_home
+from ...mjmodel import HomeCompiles, compile_home
 from .. import emit
 from . import config as actuator_config
 from . import servo as servo_design
@@ -149,7 +149,9 @@ class ActuatorConfig:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
 
 
-def run(model: Model, cfg: ActuatorConfig) -> Model:
+def run(model: Model, cfg: ActuatorConfig, compiles: HomeCompiles | None = None) -> Model:
+    """``compiles``: where the conversion keeps this pass's compile of the robot (the
+    scene pass reuses it where the shapes agree)."""
     robot = model.robot
     home = control_tags.initial_positions(robot)
     if home:  # the described start pose: the home keyframe, and the pose gains are sized at
@@ -186,7 +188,10 @@ def run(model: Model, cfg: ActuatorConfig) -> Model:
     gains: dict[str, tuple[float | None, float | None]] = {}
     if sized:
         system = _measure(
-            replace(model, joint_tuning=all_tuning, gravcomp=gravcomp), list(sized), cfg
+            replace(model, joint_tuning=all_tuning, gravcomp=gravcomp),
+            list(sized),
+            cfg,
+            compiles,
         )
         params = DesignParams(
             cfg.sag_tolerance, cfg.sag_tolerance_linear, cfg.drift_tolerance, cfg.max_omega_dt
@@ -416,7 +421,9 @@ def _ranges(
 # -- the robot's dynamics at the home pose ----------------------------------------
 
 
-def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSystem:
+def _measure(
+    model: Model, joints: list[str], cfg: ActuatorConfig, compiles: HomeCompiles | None = None
+) -> ServoSystem:
     """Compile ``model`` in memory and linearise it at the home keyframe."""
     import mujoco
 
@@ -426,7 +433,7 @@ def _measure(model: Model, joints: list[str], cfg: ActuatorConfig) -> ServoSyste
     )
     try:
         # visual geoms carry no mass and touch nothing: left out of this compile
-        m, d = compile_home(result.xml, result.files, collision_only=True)
+        m, d = compile_home(result.root, result.files, collision_only=True, compiles=compiles)
     except ValueError as exc:
         raise ValidationError(
             f"MuJoCo rejected the model while sizing actuator gains: {exc}", file=robot.source
