@@ -50,12 +50,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..mesh_distance import MeshDistance
 from . import stored
 from .collision import (
     SEED,
     Primitive,
     _largest,
-    _MeshDistance,
     _sample_triangles,
     _sample_union,
     colliding_geoms,
@@ -383,7 +383,7 @@ class _Placed:
 
     prims: list[Primitive]
     meshes: list[Any]
-    distances: list[_MeshDistance] = field(default_factory=list)
+    distances: list[MeshDistance] = field(default_factory=list)
 
     @classmethod
     def of(cls, ref: Reference, link: Any, pose: np.ndarray) -> _Placed:
@@ -395,7 +395,7 @@ class _Placed:
             meshes.append(mesh)
         prims = [Primitive(p.kind, p.size, pose @ p.pose) for p in src.primitives]
         rng = np.random.default_rng(SEED)
-        return cls(prims, meshes, [_MeshDistance(x, rng) for x in meshes])
+        return cls(prims, meshes, [MeshDistance(x.triangles, rng) for x in meshes])
 
     def bounds(self) -> np.ndarray | None:
         clouds = [p.cloud() for p in self.prims] + [np.asarray(x.vertices) for x in self.meshes]

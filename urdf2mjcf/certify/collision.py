@@ -21,7 +21,7 @@ Figures (per link):
     model's surface (seed 0, so deterministic). How far the collision shape
     sticks out of the description: a convex hull bridging a cavity, or a shape
     swapped for a bigger one. The maximum over the sampled points is exact (see
-    :class:`_MeshDistance`); between samples it may miss a thin spike.
+    :class:`MeshDistance`); between samples it may miss a thin spike.
 ``uncovered_mm``
     The reverse direction, cheaply: the largest distance by which a point of
     the source's surface (``SAMPLES`` points) lies outside every model geom
@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..mesh_distance import MeshDistance
 from . import stored
 
 if TYPE_CHECKING:
@@ -83,7 +84,6 @@ SAMPLES = 1000
 SEED = 0
 
 _COLLISION_NAME = re.compile(r"^(?P<link>.*)_collision(?:_\d+)?$")
-_MAX_PAIRS = 1 << 20  # point-triangle pairs per exact batch (memory bound)
 
 
 # -- shapes ------------------------------------------------------------------
@@ -235,72 +235,7 @@ def _sample_triangles(tri: np.ndarray, n: int, rng: np.random.Generator) -> np.n
     return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
 
 
-class _MeshDistance:
-    """Distances from points to a triangle surface, cheap where only the largest counts.
-
-    ``upper``: the exact distance to the triangles of the few surface samples (face
-    centres and points spread by area) nearest to each point, found by a k-d
-    tree: never below the true distance, and equal to it wherever the nearest
-    triangle is among them, which is nearly everywhere. ``exact``: the distance
-    to every triangle whose bounding box the upper bound reaches. :func:`_largest`
-    refines points in decreasing order of their upper bound until no remaining
-    bound exceeds the largest exact distance, so the maximum it returns is exact
-    over the points given.
-    """
-
-    def __init__(self, mesh: trimesh.Trimesh, rng: np.random.Generator) -> None:
-        from scipy.spatial import cKDTree
-
-        self.tri = np.asarray(mesh.triangles)
-        n = len(self.tri)
-        faces = np.arange(n) if n <= 10000 else rng.choice(n, 10000, replace=False)
-        area = np.linalg.norm(
-            np.cross(self.tri[:, 1] - self.tri[:, 0], self.tri[:, 2] - self.tri[:, 0]), axis=1
-        )
-        spread = rng.choice(n, 2000, p=area / area.sum()) if area.sum() > 0 else faces[:0]
-        self.face = np.concatenate([faces, spread])
-        uv = rng.uniform(size=(len(spread), 2))
-        flip = uv.sum(axis=1) > 1
-        uv[flip] = 1 - uv[flip]
-        t = self.tri[spread]
-        on = t[:, 0] + uv[:, :1] * (t[:, 1] - t[:, 0]) + uv[:, 1:] * (t[:, 2] - t[:, 0])
-        self.tree = cKDTree(np.vstack([self.tri[faces].mean(axis=1), on]))
-        self._boxes: tuple[np.ndarray, np.ndarray] | None = None
-
-    def upper(self, points: np.ndarray) -> np.ndarray:
-        from trimesh.triangles import closest_point
-
-        k = min(4, len(self.face))
-        idx = np.asarray(self.tree.query(points, k=k)[1]).reshape(len(points), k)
-        fi = self.face[idx].ravel()
-        pts = np.repeat(points, k, axis=0)
-        d = np.linalg.norm(closest_point(self.tri[fi], pts) - pts, axis=1)
-        return d.reshape(len(points), k).min(axis=1)
-
-    def exact(self, points: np.ndarray, bound: np.ndarray) -> np.ndarray:
-        from trimesh.triangles import closest_point
-
-        if self._boxes is None:
-            self._boxes = (self.tri.min(axis=1), self.tri.max(axis=1))
-        lo, hi = self._boxes
-        out = bound.astype(float).copy()
-        step = max(1, _MAX_PAIRS // max(1, len(self.tri)))
-        for start in range(0, len(points), step):
-            p = points[start : start + step]
-            # Triangles whose bounding box the bound reaches: the only ones that can be nearer.
-            gap = np.maximum(np.maximum(lo[None] - p[:, None], p[:, None] - hi[None]), 0.0)
-            near = (gap**2).sum(axis=2) <= (out[start : start + step, None] ** 2) + 1e-18
-            pi, fi = np.nonzero(near)
-            if not len(pi):
-                continue
-            d = np.linalg.norm(closest_point(self.tri[fi], p[pi]) - p[pi], axis=1)
-            best = np.full(len(p), np.inf)
-            np.minimum.at(best, pi, d)
-            out[start : start + step] = np.minimum(out[start : start + step], best)
-        return out
-
-
-SourcePart = Primitive | _MeshDistance
+SourcePart = Primitive | MeshDistance
 
 
 def _largest(parts: list[SourcePart], points: np.ndarray) -> float:
@@ -318,7 +253,7 @@ def _largest(parts: list[SourcePart], points: np.ndarray) -> float:
             break
         exact = bounds[idx].copy()
         for part in parts:
-            if isinstance(part, _MeshDistance):
+            if isinstance(part, MeshDistance):
                 exact = np.minimum(exact, part.exact(points[idx], exact))
         best = max(best, float(exact.max()))
     return best
@@ -573,7 +508,8 @@ def measure_link(
 ) -> dict[str, Any]:
     """The figures of one link whose source and model both have geometry."""
     rng = np.random.default_rng(SEED)
-    parts: list[SourcePart] = [*src.primitives, *(_MeshDistance(x, rng) for x in src.meshes)]
+    meshes = [MeshDistance(x.triangles, rng) for x in src.meshes]
+    parts: list[SourcePart] = [*src.primitives, *meshes]
     model_points = _sample_union(shapes, samples, rng)
     hausdorff = _largest(parts, model_points)
     src_shapes: list[Primitive | Hull] = list(src.primitives)

@@ -37,6 +37,7 @@ from typing import Literal
 
 import numpy as np
 
+from ...mesh_distance import MeshDistance
 from .convexity import convex_hull, signed_volume
 
 Kind = Literal["sphere", "capsule", "cylinder", "box"]
@@ -82,8 +83,6 @@ _REL = 1e-9
 """Relative slack for enclosure (of the mesh's bounding-box diagonal)."""
 _QMC = 4096
 """Quasi-random points per fit for the overlap of a set's fits."""
-_MAX_PAIRS = 2_000_000
-"""Point-triangle pairs per exact distance batch (memory bound)."""
 
 
 @dataclass(frozen=True)
@@ -496,84 +495,12 @@ def _local_extent(fit: Fit) -> np.ndarray:
 # -- distance to the mesh surface ---------------------------------------------
 
 
-class _MeshDistance:
-    """Distances from points to a triangle surface, exact where the largest counts.
-
-    ``upper``: the exact distance to the triangles of the 4 nearest surface
-    samples (face centres and points spread by area, fixed seed), never below the
-    true distance. :meth:`largest` refines points in decreasing order of that
-    bound against every triangle whose bounding box the bound reaches, until no
-    remaining bound exceeds the largest exact distance: the maximum is exact over
-    the points given.
-    """
-
-    def __init__(self, tri: np.ndarray) -> None:
-        from scipy.spatial import cKDTree
-
-        rng = np.random.default_rng(0)
-        self.tri = tri
-        n = len(tri)
-        faces = np.arange(n) if n <= 10000 else np.sort(rng.choice(n, 10000, replace=False))
-        area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        spread = rng.choice(n, 2000, p=area / area.sum())
-        uv = rng.uniform(size=(len(spread), 2))
-        flip = uv.sum(axis=1) > 1
-        uv[flip] = 1 - uv[flip]
-        t = tri[spread]
-        on = t[:, 0] + uv[:, :1] * (t[:, 1] - t[:, 0]) + uv[:, 1:] * (t[:, 2] - t[:, 0])
-        self.face = np.concatenate([faces, spread])
-        self.tree = cKDTree(np.vstack([tri[faces].mean(axis=1), on]))
-        self.lo, self.hi = tri.min(axis=1), tri.max(axis=1)
-
-    def upper(self, points: np.ndarray) -> np.ndarray:
-        from trimesh.triangles import closest_point
-
-        k = min(4, len(self.face))
-        idx = np.asarray(self.tree.query(points, k=k)[1]).reshape(len(points), k)
-        fi = self.face[idx].ravel()
-        pts = np.repeat(points, k, axis=0)
-        d = np.linalg.norm(closest_point(self.tri[fi], pts) - pts, axis=1)
-        return d.reshape(len(points), k).min(axis=1)
-
-    def exact(self, points: np.ndarray, bound: np.ndarray) -> np.ndarray:
-        from trimesh.triangles import closest_point
-
-        out = bound.astype(np.float64).copy()
-        step = max(1, _MAX_PAIRS // max(1, len(self.tri)))
-        for start in range(0, len(points), step):
-            p = points[start : start + step]
-            # Only triangles whose bounding box the bound reaches can be nearer.
-            gap = np.maximum(np.maximum(self.lo[None] - p[:, None], p[:, None] - self.hi[None]), 0)
-            near = (gap**2).sum(axis=2) <= out[start : start + step, None] ** 2 + 1e-18
-            pi, fi = np.nonzero(near)
-            if not len(pi):
-                continue
-            d = np.linalg.norm(closest_point(self.tri[fi], p[pi]) - p[pi], axis=1)
-            best = np.full(len(p), np.inf)
-            np.minimum.at(best, pi, d)
-            out[start : start + step] = np.minimum(out[start : start + step], best)
-        return out
-
-    def largest(self, points: np.ndarray) -> float:
-        bounds = self.upper(points)
-        order = np.argsort(-bounds, kind="stable")
-        best = 0.0
-        step = 8  # the first few points nearly always hold the maximum
-        for lo in range(0, len(order), step):
-            idx = order[lo : lo + step]
-            step = min(64, 2 * step)
-            if bounds[idx[0]] <= best:  # nothing left can be farther
-                break
-            best = max(best, float(self.exact(points[idx], bounds[idx]).max()))
-        return best
-
-
 @dataclass(frozen=True, eq=False)
 class _Mesh:
     vertices: np.ndarray
     faces: np.ndarray
     volume: float
-    distance: _MeshDistance
+    distance: MeshDistance
 
 
 def _prepare(vertices: np.ndarray, faces: np.ndarray) -> _Mesh | None:
@@ -604,7 +531,8 @@ def _prepare(vertices: np.ndarray, faces: np.ndarray) -> _Mesh | None:
         volume = abs(signed_volume(hull.vertices, hull.faces))
     if not volume > 0:
         return None
-    return _Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), volume, _MeshDistance(tri))
+    distance = MeshDistance(tri, np.random.default_rng(0))  # fixed seed: deterministic fits
+    return _Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), volume, distance)
 
 
 def _deviation(fits: Sequence[Fit], mesh: _Mesh) -> Deviation:
