@@ -498,8 +498,7 @@ def _classify(
         # A warm run's usual case: no trimesh, no qhull (the stored hull is bit-exact).
         stored = cache.load_hull(hull_key)
         if stored is not None:
-            notes.append(Note("hull", label, f"convex hull (hull gap {cached_gap:.3f})"))
-            return _Plan("hull", label, stem, pieces=(stored,))
+            return _hull(label, stem, stored, f"hull gap {cached_gap:.3f}", notes)
     mesh = as_trimesh(loaded.merged)
     if len(mesh.faces) == 0:
         notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
@@ -513,13 +512,8 @@ def _classify(
         if cache is not None:
             cache.store_gap(gap_key, fit.gap)
     if fit.gap <= cfg.max_hull_gap:
-        hull = fit.hull if fit.hull is not None else convex_hull(mesh.vertices)
-        if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
-            return _flat(label, stem, mesh.vertices, notes)
-        if cache is not None:
-            cache.store_hull(hull_key, hull)
-        notes.append(Note("hull", label, f"convex hull (hull gap {fit.gap:.3f})"))
-        return _Plan("hull", label, stem, pieces=(hull,))
+        why = f"hull gap {fit.gap:.3f}"
+        return _new_hull(label, stem, mesh.vertices, fit.hull, hull_key, cache, why, notes)
     vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     key = cache_key(loaded.sha256, array_digest(vertices, faces), asdict(cfg.coacd))
@@ -603,21 +597,41 @@ def _hull_plan(
     notes: list[Note],
 ) -> _Plan:
     """The convex hull, whatever the hull gap (shapes ``hull`` and ``primitive``)."""
+    why = f"collision shape {shape}"
     stored = cache.load_hull(hull_key) if cache is not None else None
     if stored is not None:
-        notes.append(Note("hull", label, f"convex hull (collision shape {shape})"))
-        return _Plan("hull", label, stem, pieces=(stored,))
+        return _hull(label, stem, stored, why, notes)
     mesh = as_trimesh(loaded.merged)
     if len(mesh.faces) == 0:
         notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
         return _Plan("none", label, stem)
-    hull = convex_hull(mesh.vertices)
+    return _new_hull(label, stem, mesh.vertices, None, hull_key, cache, why, notes)
+
+
+def _hull(label: str, stem: str, hull: MeshData, why: str, notes: list[Note]) -> _Plan:
+    notes.append(Note("hull", label, f"convex hull ({why})"))
+    return _Plan("hull", label, stem, pieces=(hull,))
+
+
+def _new_hull(
+    label: str,
+    stem: str,
+    vertices: np.ndarray,
+    hull: MeshData | None,
+    hull_key: str,
+    cache: DecompositionCache | None,
+    why: str,
+    notes: list[Note],
+) -> _Plan:
+    """The plan of the hull of ``vertices`` (``hull`` where already computed), stored in
+    the cache; a flat mesh (no hull) becomes a thin box."""
     if hull is None:
-        return _flat(label, stem, mesh.vertices, notes)
+        hull = convex_hull(vertices)
+    if hull is None:  # flat, or a stored gap for what is flat after all (a corrupt entry)
+        return _flat(label, stem, vertices, notes)
     if cache is not None:
         cache.store_hull(hull_key, hull)
-    notes.append(Note("hull", label, f"convex hull (collision shape {shape})"))
-    return _Plan("hull", label, stem, pieces=(hull,))
+    return _hull(label, stem, hull, why, notes)
 
 
 def _flat(label: str, stem: str, vertices: np.ndarray, notes: list[Note]) -> _Plan:
