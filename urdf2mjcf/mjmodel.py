@@ -169,6 +169,33 @@ def home_data(m: Any) -> Any:
     return d
 
 
+def data_from(m: Any, start: Any) -> Any:
+    """A new ``mujoco.MjData`` of ``m`` in the state of ``start`` (an MjData or a
+    :func:`state_of` snapshot): positions, velocities, activations, mocap poses."""
+    import mujoco
+
+    d = mujoco.MjData(m)
+    d.qpos[:], d.qvel[:] = start.qpos, start.qvel
+    if m.na:
+        d.act[:] = start.act
+    d.mocap_pos[:], d.mocap_quat[:] = start.mocap_pos, start.mocap_quat
+    return d
+
+
+def state_of(d: Any) -> Any:
+    """What :func:`data_from` reads of ``d``, copied now (the caller's data may change
+    while another thread starts from it)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        qpos=d.qpos.copy(),
+        qvel=d.qvel.copy(),
+        act=d.act.copy(),
+        mocap_pos=d.mocap_pos.copy(),
+        mocap_quat=d.mocap_quat.copy(),
+    )
+
+
 def compile_home(
     xml: Document,
     files: Mapping[str, bytes],
@@ -326,11 +353,7 @@ def passive_second(m: Any, start: Any) -> PassiveRun:
     the figures)."""
     import mujoco
 
-    d = mujoco.MjData(m)
-    d.qpos[:], d.qvel[:] = start.qpos, start.qvel
-    if m.na:
-        d.act[:] = start.act
-    d.mocap_pos[:], d.mocap_quat[:] = start.mocap_pos, start.mocap_quat
+    d = data_from(m, start)
     flags = m.opt.disableflags
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
     _route.sink = []
@@ -395,7 +418,7 @@ def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:
     other figures) where a core is free. ``m`` is the thread's until the result is in
     (its flags change)."""
     future: Future[PassiveRun] = Future()
-    d = _data_copy(start)
+    d = state_of(start)
 
     def work() -> None:
         try:
@@ -407,15 +430,3 @@ def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:
     return future
 
 
-def _data_copy(d: Any) -> Any:
-    """The state :func:`passive_second` starts from, read now (the caller's data may
-    change while the thread starts)."""
-    from types import SimpleNamespace
-
-    return SimpleNamespace(
-        qpos=d.qpos.copy(),
-        qvel=d.qvel.copy(),
-        act=d.act.copy(),
-        mocap_pos=d.mocap_pos.copy(),
-        mocap_quat=d.mocap_quat.copy(),
-    )

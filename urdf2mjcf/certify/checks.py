@@ -270,17 +270,15 @@ def home_data(m: mujoco.MjModel, d_home: mujoco.MjData | None) -> mujoco.MjData:
     """A fresh MjData at home, forward-computed (the caller's data is left alone)."""
     import mujoco
 
-    d = mujoco.MjData(m)
+    from ..mjmodel import data_from
+
     if d_home is not None:
-        d.qpos[:] = d_home.qpos
-        d.qvel[:] = d_home.qvel
-        if m.na:
-            d.act[:] = d_home.act
-        d.mocap_pos[:] = d_home.mocap_pos
-        d.mocap_quat[:] = d_home.mocap_quat
-    elif m.nkey:
-        key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
-        mujoco.mj_resetDataKeyframe(m, d, key if key >= 0 else 0)
+        d = data_from(m, d_home)
+    else:
+        d = mujoco.MjData(m)
+        if m.nkey:
+            key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
+            mujoco.mj_resetDataKeyframe(m, d, key if key >= 0 else 0)
     mujoco.mj_forward(m, d)
     return d
 
