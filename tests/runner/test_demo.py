@@ -60,7 +60,9 @@ def test_the_demo_file_carries_the_published_values_unchanged():
     assert (lid["steps"], lid["step_deg"], lid["hold_orientation"]) == (8, 11.5, True)
     assert steps["back_out"]["tool"] == [0, 0, -0.4]
     assert [steps[n]["set"] for n in ("rail_to_0.5", "rail_to_1.2", "lift_stage_up")] == [
-        {"rail": 0.5}, {"rail": 1.2}, {"lift": 0.68}
+        {"rail": 0.5},
+        {"rail": 1.2},
+        {"lift": 0.68},
     ]
     assert steps["rail_to_0.3"]["set"] == {"rail": 0.3} and steps["rail_to_0"]["set"] == {"rail": 0}
     assert steps["lift_0.2"]["world"] == [0, 0, 0.2]
@@ -304,3 +306,50 @@ def test_a_trial_line_says_how_far_off_the_robot_located_each_component():
         " -0.013 deg off  (12.0 s wall, 76.8 s simulated)"
     )
     assert "located" not in _trial_line({**r, "localization": None})
+
+
+def test_the_step_kinds_are_registered_classes_and_the_robot_shape_comes_from_its_roles(
+    facility,
+):
+    """Each kind is a class with its schema and its check; the robot's arm joints and speed
+    limits are read from the bundle's roles (facility.json), not assumed by the code."""
+    from urdf2mjcf.errors import FacilityError
+    from urdf2mjcf.runner.steps import STEPS, Step
+    from urdf2mjcf.runner.waypoints import KINDS, check_names
+
+    assert list(KINDS) == list(STEPS) and all(isinstance(s, Step) for s in STEPS.values())
+    assert {k: v[1] for k, v in KINDS.items()} == {k: s.required for k, s in STEPS.items()}
+    manifest = json.loads((facility / "facility.json").read_text())
+    roles = manifest["components"]["robot"]["roles"]
+    fac = load(facility)
+    assert [fac.robot.joint_names[i] for i in fac.robot.arm] == roles["arm_joints"]
+    assert fac.robot.vmax is not None and fac.robot.vmax.tolist() == roles["vmax"]
+    # an arm of the wrong length names the step; one of the robot's length passes
+    spec = load_waypoints(WAYPOINTS)
+    step = next(s for s in spec["steps"] if "arm" in s)
+    step["arm"] = step["arm"] + [0.0]
+    with pytest.raises(
+        FacilityError, match=rf"arm: has 7 values; the robot needs {len(roles['arm_joints'])}"
+    ):
+        check_names(spec, WAYPOINTS, fac)
+    # without a vmax in the roles, the file must give one
+    spec = load_waypoints(WAYPOINTS)
+    del spec["robot"]["vmax"]
+    check_names(spec, WAYPOINTS, fac)  # the roles have one
+    fac.robot.vmax = None
+    with pytest.raises(FacilityError, match="robot.vmax: is required"):
+        check_names(spec, WAYPOINTS, fac)
+    # a joints step with 'arm' moves exactly the roles' arm joints
+    fac = load(facility)
+    demo = Demo(fac, load_waypoints(WAYPOINTS), log=lambda *_: None, noise=False)
+    moved = []
+    demo.planned_move = lambda q, carried: moved.append(np.array(q))  # type: ignore[method-assign]
+    try:
+        before = demo.ctl.target.copy()
+        arm = [0.1, -0.2, 0.3, -0.4, 0.5, -0.6]
+        STEPS["joints"].run(demo, {"name": "t", "kind": "joints", "arm": arm})
+    finally:
+        demo.close()
+    changed = np.flatnonzero(moved[0] != before)
+    assert set(changed) <= set(fac.robot.arm.tolist())
+    assert moved[0][fac.robot.arm].tolist() == arm

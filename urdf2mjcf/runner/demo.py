@@ -1,30 +1,9 @@
 """The logistics demo: steps from a waypoints file, executed and judged one by one.
 
-Step kinds (``kind:`` in the file):
-
-``joints``   ``q`` (all 8 joints) or ``arm`` (the 6 arm joints), or ``set`` {joint: value};
-             with ``relative_to`` (a component the file's ``nominal`` places: where it
-             stood when the pose was taught) the grasp site's pose at those joints is
-             carried along with the component's estimated pose (IK from them); all
-             planned collision-free (runner/plan.py: OMPL's RRT* with MuJoCo as the
-             collision checker, TOPP-RA timing), as the paper's MoveIt stack did; a
-             carried bag moves with the hand and may touch only it
-``pose``     the grasp site to ``position`` with tool axes ``z``/``x`` (or the rotation
-             ``orientation_xyzw``, a quaternion x, y, z, w) given in ``frame`` (``world``,
-             a body of the model, or ``handle``: the perceived strap); ``site`` names
-             another of the robot's sites (``tool``: tool0, as published poses give it);
-             ``relative_to``: as for ``joints``, a world pose carried along;
-             a straight Cartesian line through dense IK, or with ``joint_space`` the
-             IK solution reached by a planned joint move
-``relative`` a straight move by ``tool`` (tool-frame offset) or ``world`` offset
-``hinge``    the arc around ``joint``: ``steps`` x ``step_deg``, orientation held or not
-``gripper``  ``open`` / ``close``
-``look``     render the wrist camera, find the red handle, set the ``handle`` frame
-``localize`` render ``camera`` (wrist or lift), find ``component``'s AprilTags
-             (runner/localize.py) and keep its estimated pose: from then on every
-             frame and hinge of that component is the estimate x the body's pose
-             relative to the component's root in the description
-``wait``     ``seconds``
+Step kinds (``kind:`` in the file) are the registered classes of
+:mod:`urdf2mjcf.runner.steps`, each with its schema, its check against the facility
+and what it does; the robot's shape (its joints, arm joints, speed limits) comes
+from the bundle's roles (``facility.json``).
 
 A mockup's pose is never read from the model: a frame or hinge on a component
 (a body of the manifest's components other than the robot) before a ``localize``
@@ -50,16 +29,12 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import PlanningError
 from . import ik, localize, perception, plan
-from .control import Controller, path_duration
-from .hinge import arc, hinge_axis, turned
+from .control import Controller
 from .judge import ContactJudge, stowed
 from .load import Facility
 from .noise import SensorNoise
+from .steps import STEPS, StepError
 from .waypoints import check_names, read_waypoints
-
-
-class StepError(RuntimeError):
-    """A step cannot be carried out (unreachable pose, nothing seen)."""
 
 
 @dataclass
@@ -137,7 +112,8 @@ class Demo:
         self.fac, self.spec = fac, spec
         self.m, self.d, self.r = fac.model, fac.data, fac.robot
         rs = spec.get("robot", {})
-        self.vmax = np.array(rs.get("vmax", [0.15, 0.3, 1, 1, 1, 1.5, 1.5, 1.5]), float)
+        # the file's speed limits, else the robot's own from its roles
+        self.vmax = np.array(rs.get("vmax", self.r.vmax), float)
         self.weights = np.array(rs.get("ik_weights", [1.0] * len(self.r.joints)), float)
         self.site = self.r.sites[rs.get("site", "grasp")]
         self.bag = spec["bag"]
@@ -344,23 +320,11 @@ class Demo:
 
     # ------------------------------------------------------------ steps
     def run_step(self, step: dict) -> None:
-        kind = step["kind"]
+        kind = STEPS[step["kind"]]
         self.ctl.vmax = self.vmax * float(step.get("speed", 1.0))
-        getattr(self, f"_do_{kind}")(step)
-        if step.get("settle", kind not in ("wait", "gripper", "look", "localize")):
+        kind.run(self, step)
+        if step.get("settle", kind.settles):
             self.ctl.settle(timeout=step.get("settle_timeout", 1.5))
-
-    def _do_joints(self, step: dict) -> None:
-        q = self.ctl.target.copy()
-        if "q" in step:
-            q = np.array(step["q"], float)
-        if "arm" in step:
-            q[2:] = step["arm"]
-        for name, value in step.get("set", {}).items():
-            q[self.r.joint_names.index(name)] = value
-        if "relative_to" in step:
-            q = self._carried_along(q, step["relative_to"])
-        self.planned_move(q, step.get("carried", False))
 
     def _moved(self, comp: str) -> np.ndarray:
         """(4, 4) how far ``comp`` stands from where the file's ``nominal`` placed it
@@ -376,14 +340,14 @@ class Demo:
         yaw = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         return est.matrix() @ np.linalg.inv(_pose(np.asarray(nominal["xyz"], float), yaw))
 
-    def _carried_along(self, q: np.ndarray, comp: str) -> np.ndarray:
+    def carried_along(self, q: np.ndarray, comp: str) -> np.ndarray:
         """The joints that put the grasp site where ``q`` put it when ``comp`` stood at
         its nominal place, now that it stands where its estimate says."""
         moved = self._moved(comp)
         p, R = ik.site_pose(self.m, self.d, self.site, q, self.r.qpos)
         return self.ik(moved[:3, :3] @ p + moved[:3, 3], moved[:3, :3] @ R, q0=q)
 
-    def _target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
+    def target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
         origin, R0 = self.frame(step.get("frame", "world"))
         pos = origin + R0 @ np.asarray(step["position"], float)
         _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
@@ -407,118 +371,6 @@ class Demo:
             p_rel = rs.T @ (self.d.site_xpos[g] - self.d.site_xpos[s])
             pos, R = pos + R @ p_rel, R @ (rs.T @ rg)
         return pos, R
-
-    def _do_pose(self, step: dict) -> None:
-        pos, R = self._target_pose(step)
-        if step.get("joint_space"):
-            q = self.ik(
-                pos, R, q0=np.array(step["seed"], float) if "seed" in step else self.ctl.target
-            )
-            self.planned_move(q, step.get("carried", False))
-            return
-        path = self.cartesian_path([(pos, R)], self.ctl.target.copy())
-        self.ctl.follow(path, step.get("duration"))
-
-    def _do_relative(self, step: dict) -> None:
-        p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
-        if "tool" in step:
-            p = p + R @ np.asarray(step["tool"], float)
-        if "world" in step:
-            p = p + np.asarray(step["world"], float)
-        path = self.cartesian_path([(p, R)], self.ctl.target.copy())
-        self.ctl.follow(path, step.get("duration"))
-
-    def _do_hinge(self, step: dict) -> None:
-        j = self.fac.joint(step["joint"])
-        # the axis where the robot believes the hinge is (the estimate, for a mockup's)
-        anchor, axis = hinge_axis(self.m, j, self.body_pose(int(self.m.jnt_bodyid[j])))
-        p, R = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
-        hold = step.get("hold_orientation", True)
-        poses = arc(
-            anchor,
-            axis,
-            p,
-            R,
-            steps=step.get("steps", 8),
-            step_deg=step.get("step_deg", 11.5),
-            hold_orientation=hold,
-        )
-        q = self.ctl.target.copy()
-        prev = 0.0
-        for ang, _, _ in poses:  # each pose of the arc, reached along the circle
-            n = max(2, int(math.ceil(math.degrees(ang - prev))))
-            waypoints = [q]
-            for k in range(1, n + 1):
-                sp, sR = turned(anchor, axis, p, R, prev + (ang - prev) * k / n, hold)
-                q = self.ik(sp, sR, q0=q)
-                waypoints.append(q)
-            path = np.array(waypoints)
-            self.ctl.follow(
-                path, max(step.get("step_time", 1.0), path_duration(path, self.ctl.vmax))
-            )
-            self.ctl.settle(timeout=0.5)
-            prev = ang
-
-    def _do_gripper(self, step: dict) -> None:
-        what = step["action"]
-        opening = {"open": self.r.gripper_open, "close": self.r.gripper_closed}.get(what, what)
-        self.ctl.set_gripper(float(opening), step.get("seconds", 1.0))
-
-    def _do_wait(self, step: dict) -> None:
-        self.ctl.wait(step["seconds"])
-
-    def _do_look(self, step: dict) -> None:
-        cam = self.camera(step.get("camera", "wrist"))
-        rgb, depth = cam.rgbd(self.d)
-        g = perception.find_handle(self.m, self.d, cam.cam, rgb, depth, step.get("min_pixels", 200))
-        mask = perception.red_mask(rgb)
-        self.snapshot(step["name"], (mask[..., None] * np.array([255, 255, 255])).astype(np.uint8))
-        if g is None:
-            raise StepError(
-                f"the CTB handle is not in the wrist camera's view ({int(mask.sum())} red pixels)"
-            )
-        border = step.get("border_px", 2)
-        vs, us = np.nonzero(g.segment.mask)
-        h, w = mask.shape
-        if (
-            us.min() < border
-            or vs.min() < border
-            or us.max() >= w - border
-            or vs.max() >= h - border
-        ):
-            raise StepError("the CTB handle is cut by the edge of the wrist camera's image")
-        R = np.column_stack([g.axis, np.cross([0, 0, 1.0], g.axis), [0, 0, 1.0]])
-        self.handle = (g.position, R)
-        self.handle_info = {
-            "position": np.round(g.position, 4).tolist(),
-            "yaw_deg": round(math.degrees(g.yaw), 2),
-            "pixels": g.segment.pixels,
-            "centroid_px": np.round(g.segment.centroid, 1).tolist(),
-            "aspect": round(g.segment.aspect, 2),
-            "depth": round(g.depth, 4),
-        }
-        self.log(
-            f"  handle at {self.handle_info['position']} yaw {self.handle_info['yaw_deg']} deg "
-            f"({g.segment.pixels} px)"
-        )
-
-    def _do_localize(self, step: dict) -> None:
-        comp, role = step["component"], step.get("camera", "wrist")
-        found = localize.locate(self.camera(role), self.d, self.fac.manifest)
-        est = found.get(comp)
-        need = step.get("min_tags", 1)
-        if est is None or len(est.tags) < need:
-            seen = sorted(t for e in found.values() for t in e.tags)
-            raise StepError(
-                f"{len(est.tags) if est else 0} tag(s) of the {comp} in the {role} camera's "
-                f"view, {need} needed (tags seen: {seen or 'none'})"
-            )
-        self.estimates[comp] = est
-        self.log(
-            f"  {comp} at {np.round(est.position, 4).tolist()} yaw "
-            f"{math.degrees(est.yaw):.2f} deg (tags {list(est.tags)})"
-        )
-
     # ------------------------------------------------------------ run
     def run(self) -> DemoResult:
         t0 = time.perf_counter()

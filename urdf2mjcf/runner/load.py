@@ -141,6 +141,10 @@ class Robot:
     sites: dict[str, int]
     cameras: dict[str, int]
     bodies: set[int] = field(default_factory=set)  # every body of the robot
+    arm: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    """Indices into ``joints`` of the arm's joints (roles ``arm_joints``), in their order."""
+    vmax: np.ndarray | None = None
+    """Speed limit of each joint (rad/s or m/s; roles ``vmax``), None where not given."""
 
 
 @dataclass
@@ -263,6 +267,28 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
     grip_open = r.value("open", (int, float), "gripper")
     grip_closed = r.value("closed", (int, float), "gripper")
     root = int(m.body_rootid[m.jnt_bodyid[joints[0]]])
+    arm_names = r.value("arm_joints", list) if "arm_joints" in r.roles else []
+    unknown = [a for a in arm_names if a not in names]
+    if unknown:
+        raise LoadError(
+            f"'{unknown[0]}' is not one of the robot's joints",
+            file=manifest_path,
+            element=r._at("arm_joints"),
+        )
+    vmax = None
+    if "vmax" in r.roles:
+        values = r.value("vmax", list)
+        ok = all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf")
+            for v in values
+        )
+        if len(values) != len(names) or not ok:
+            raise LoadError(
+                f"needs {len(names)} positive speeds, one per joint",
+                file=manifest_path,
+                element=r._at("vmax"),
+            )
+        vmax = np.array(values, float)
     robot = Robot(
         joint_names=list(names),
         joints=joints,
@@ -280,5 +306,7 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
         sites=sites,
         cameras=cams,
         bodies=_subtree(m, root),
+        arm=np.array([list(names).index(a) for a in arm_names], int),
+        vmax=vmax,
     )
     return Facility(folder, m, d, manifest, robot)

@@ -15,219 +15,42 @@ image larger than the model's offscreen buffer or divide by zero.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import mujoco
 
 from ..errors import FacilityError
-from ..facility.fiducials import TAG_COUNT
-from ..facility.values import ANGLE_MAX, LENGTH_MAX, TIMESTEP_RANGE
+from ..facility.values import TIMESTEP_RANGE
 from ..schema import Source, load
-from ..untrusted import excerpt
-
-Check = Callable[[Any, str, "Waypoints"], None]
-
-DURATION_MAX = 600.0
-"""s simulated: the longest duration, wait, hold or settle time of one step (and the
-final wait); the demo's own are under 2 s."""
-STEPS_MAX = 1_000
-"""Most steps a waypoints file may hold (the published demo has 28)."""
-HINGE_STEPS_MAX = 1_000
-"""Most poses of one hinge step (the published one has 8)."""
-POSITION_MAX = 1_000.0
-"""m: the largest coordinate of a position, a tool or world offset, a volume."""
-JOINT_MAX = 1_000.0
-"""rad or m: the largest joint value (q, arm, set, IK seeds)."""
-SPEED_MAX = 100.0
-"""The largest speed factor of a step (of the robot's vmax) and the largest vmax."""
-IMAGE_MAX = 16_384
-"""px: the largest perception image side (MuJoCo's offscreen buffer's own limit)."""
-PIXELS_MAX = IMAGE_MAX * IMAGE_MAX
-
-
-class Waypoints:
-    """Where errors point: the file and, for a file read here, the key's line."""
-
-    def __init__(self, path: Path | None, source: Source | None = None):
-        self.path = path
-        self.source = source or Source(path or "waypoints", error=FacilityError)
-
-    def fail(self, where: str, message: str) -> FacilityError:
-        return self.source.fail(where, message)  # type: ignore[return-value]
-
-
-def _number(
-    value: Any,
-    where: str,
-    w: Waypoints,
-    *,
-    low: float = -math.inf,
-    high: float = math.inf,
-    low_open: bool = False,
-) -> float:
-    """A finite float in [low, high] (``(low, high]`` with ``low_open``)."""
-    x = math.nan
-    if not isinstance(value, bool) and isinstance(value, (int, float)):
-        try:
-            x = float(value)
-        except OverflowError:  # an integer of 400 digits
-            pass
-    if not math.isfinite(x):
-        raise w.fail(where, f"'{excerpt(str(value), 40)}' is not a number")
-    if (x <= low if low_open else x < low) or x > high:
-        lo = "above" if low_open else "from"
-        raise w.fail(where, f"{x:g} is out of range ({lo} {low:g} to {high:g})")
-    return x
-
-
-def ranged(low: float, high: float, low_open: bool = False) -> Check:
-    """A check of one number in [low, high] (``(low, high]`` with ``low_open``)."""
-
-    def check(value: Any, where: str, w: Waypoints) -> None:
-        _number(value, where, w, low=low, high=high, low_open=low_open)
-
-    return check
-
-
-number = ranged(-POSITION_MAX, POSITION_MAX)
-positive = ranged(0.0, POSITION_MAX, low_open=True)
-duration = ranged(0.0, DURATION_MAX, low_open=True)
-"""A step's duration or settle time (s): above 0 and at most DURATION_MAX."""
-seconds = ranged(0.0, DURATION_MAX)
-"""A wait or a hold (s): 0 .. DURATION_MAX."""
-speed = ranged(0.0, SPEED_MAX, low_open=True)
-degrees = ranged(-360.0, 360.0)
-
-
-def count(high: int, low: int = 0) -> Check:
-    """A check of a whole number in [low, high]."""
-
-    def check(value: Any, where: str, w: Waypoints) -> None:
-        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-            shown = excerpt(str(value), 40)
-            raise w.fail(where, f"'{shown}' is not a whole number from {low} to {high}")
-
-    return check
-
-
-def flag(value: Any, where: str, w: Waypoints) -> None:
-    if not isinstance(value, bool):
-        raise w.fail(where, f"'{value}' is not true or false")
-
-
-def name(value: Any, where: str, w: Waypoints) -> None:
-    if not isinstance(value, str) or not value:
-        raise w.fail(where, f"'{value}' is not a name")
-
-
-def numbers(
-    n: int | None = None,
-    low: float = -POSITION_MAX,
-    high: float = POSITION_MAX,
-    *,
-    low_open: bool = False,
-    nonzero: bool = False,
-) -> Check:
-    """A check of a list of numbers (``n`` of them), each in [low, high]; ``nonzero``: a
-    direction or a quaternion, which must not be all zeros (it is normalised)."""
-
-    def check(value: Any, where: str, w: Waypoints) -> None:
-        if not isinstance(value, list) or (n is not None and len(value) != n):
-            raise w.fail(where, f"needs a list of {n} numbers" if n else "needs a list of numbers")
-        if n is None and len(value) > JOINTS_MAX:
-            raise w.fail(where, f"has {len(value)} numbers; at most {JOINTS_MAX}")
-        xs = [
-            _number(v, f"{where}[{i}]", w, low=low, high=high, low_open=low_open)
-            for i, v in enumerate(value)
-        ]
-        if nonzero and math.hypot(*xs) < 1e-9:
-            raise w.fail(where, "is all zeros; it needs a direction")
-
-    return check
-
-
-JOINTS_MAX = 1_000
-"""Most numbers in a list of joint values (q, arm, seed, vmax, ik_weights)."""
-joints = numbers(None, -JOINT_MAX, JOINT_MAX)
-axis = numbers(3, nonzero=True)
-
-
-def pairs(value: Any, where: str, w: Waypoints) -> None:
-    if not isinstance(value, list):
-        raise w.fail(where, "needs a list of [body glob, body glob] pairs")
-    for i, p in enumerate(value):
-        if not (isinstance(p, list) and len(p) == 2 and all(isinstance(s, str) for s in p)):
-            raise w.fail(f"{where}[{i}]", "needs a pair of body-name globs [a, b]")
-
-
-def joint_values(value: Any, where: str, w: Waypoints) -> None:
-    if not isinstance(value, Mapping) or not value:
-        raise w.fail(where, "needs a mapping of joint name to value")
-    for k, v in value.items():
-        _number(v, f"{where}.{k}", w, low=-JOINT_MAX, high=JOINT_MAX)
-
-
-OPENING_MAX = 1.0
-"""m: the widest gripper opening a step may ask for."""
-
-
-def action(value: Any, where: str, w: Waypoints) -> None:
-    if value not in ("open", "close"):
-        try:
-            _number(value, where, w, low=0.0, high=OPENING_MAX)
-        except FacilityError:
-            shown = excerpt(str(value), 40)
-            message = f"'{shown}' is not open, close or an opening (0 .. {OPENING_MAX:g} m)"
-            raise w.fail(where, message) from None
-
-
-def check_spec(value: Any, where: str, w: Waypoints) -> None:
-    _mapping(value, where, w, {"joint_above_deg": _joint_above, "bag_lifted": number})
-
-
-def _joint_above(value: Any, where: str, w: Waypoints) -> None:
-    if not (isinstance(value, list) and len(value) == 2 and isinstance(value[0], str)):
-        raise w.fail(where, "needs [joint name, degrees]")
-    degrees(value[1], f"{where}[1]", w)
-
-
-def placements(value: Any, where: str, w: Waypoints) -> None:
-    if not isinstance(value, Mapping) or not value:
-        raise w.fail(where, "needs a mapping of component to {xyz, yaw}")
-    keys = {"xyz": numbers(3, -LENGTH_MAX, LENGTH_MAX), "yaw": ranged(-ANGLE_MAX, ANGLE_MAX)}
-    for comp, pose in value.items():
-        _mapping(pose, f"{where}.{comp}", w, keys, ("xyz", "yaw"))
-
-
-def section(keys: dict[str, Check], required: tuple[str, ...] = ()) -> Check:
-    def check(value: Any, where: str, w: Waypoints) -> None:
-        _mapping(value, where, w, keys, required)
-
-    return check
-
-
-def _mapping(
-    value: Any, where: str, w: Waypoints, keys: dict[str, Check], required: tuple[str, ...] = ()
-) -> None:
-    if not isinstance(value, Mapping):
-        raise w.fail(where, "needs a mapping of keys to values")
-    unknown = sorted(str(k) for k in value if k not in keys)
-    if unknown:
-        bad = excerpt(unknown[0], 60)
-        raise w.fail(_join(where, bad), f"unknown key; valid: {', '.join(keys)}")
-    for key in required:
-        if key not in value:
-            raise w.fail(_join(where, key), "is required")
-    for key, v in value.items():
-        keys[key](v, _join(where, key), w)
-
-
-def _join(where: str, key: str) -> str:
-    """A key below ``where`` (a top-level key is its own name: its line is found)."""
-    return f"{where}.{key}" if where else key
-
+from .checks import (  # noqa: F401  (the limits: documented as waypoints.*)
+    DURATION_MAX,
+    HINGE_STEPS_MAX,
+    IMAGE_MAX,
+    JOINT_MAX,
+    JOINTS_MAX,
+    POSITION_MAX,
+    SPEED_MAX,
+    STEPS_MAX,
+    Check,
+    Waypoints,
+    _mapping,
+    check_spec,
+    count,
+    degrees,
+    duration,
+    flag,
+    name,
+    numbers,
+    pairs,
+    placements,
+    positive,
+    seconds,
+    section,
+    speed,
+)
+from .steps import STEPS
 
 COMMON: dict[str, Check] = {
     "name": name,
@@ -242,44 +65,9 @@ COMMON: dict[str, Check] = {
     "duration": duration,
 }
 KINDS: dict[str, tuple[dict[str, Check], tuple[str, ...]]] = {
-    "joints": (
-        {"q": joints, "arm": joints, "set": joint_values, "relative_to": name}, ()
-    ),
-    "pose": (
-        {
-            "position": numbers(3),
-            "frame": name,
-            "z": axis,
-            "x": axis,
-            "x_sign_free": flag,
-            "orientation_xyzw": numbers(4, nonzero=True),
-            "site": name,
-            "joint_space": flag,
-            "seed": joints,
-            "relative_to": name,
-        },
-        ("position",),
-    ),
-    "relative": ({"tool": numbers(3), "world": numbers(3)}, ()),
-    "hinge": (
-        {
-            "joint": name,
-            "steps": count(HINGE_STEPS_MAX, 1),
-            "step_deg": degrees,
-            "hold_orientation": flag,
-            "step_time": duration,
-        },
-        ("joint",),
-    ),
-    "gripper": ({"action": action, "seconds": seconds}, ("action",)),
-    "look": (
-        {"camera": name, "min_pixels": count(PIXELS_MAX), "border_px": count(IMAGE_MAX)}, ()
-    ),
-    "localize": (
-        {"component": name, "camera": name, "min_tags": count(TAG_COUNT)}, ("component",)
-    ),
-    "wait": ({"seconds": seconds}, ("seconds",)),
+    kind: (step.keys, step.required) for kind, step in STEPS.items()
 }
+"""Step kind -> (its keys, the required ones): the registered step classes' schemas."""
 
 
 def image_size(value: Any, where: str, w: Waypoints) -> None:
@@ -412,38 +200,22 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
     for key in ("vmax", "ik_weights"):
         if key in rs:
             length(rs[key], n, f"robot.{key}")
+    if "vmax" not in rs and robot.vmax is None:
+        raise w.fail("robot.vmax", "is required: the facility's robot roles give no vmax")
     exists(obj.mjOBJ_BODY, spec["bag"]["body"], "bag.body")
     exists(obj.mjOBJ_GEOM, spec["bag"]["geom"], "bag.geom")
     exists(obj.mjOBJ_BODY, spec["stowage"]["body"], "stowage.body")
     for i, step in enumerate(spec["steps"]):
         at = _step_at(i, step)
-        for key, want in (("q", n), ("seed", n), ("arm", n - 2)):
-            if key in step:
-                length(step[key], want, f"{at}.{key}")
-        for joint in step.get("set", {}):
-            if joint not in robot.joint_names:
-                valid = ", ".join(robot.joint_names)
-                message = f"'{joint}' is not a joint of the robot; joints: {valid}"
-                raise w.fail(f"{at}.set.{joint}", message)
+        STEPS[step["kind"]].check(step, at, fac, w)
         frame = step.get("frame", "world")
         if frame not in ("world", "handle"):
             exists(obj.mjOBJ_BODY, frame, f"{at}.frame")
-        if step["kind"] == "hinge":
-            exists(obj.mjOBJ_JOINT, step["joint"], f"{at}.joint")
         if "joint_above_deg" in step.get("check", {}):
             exists(obj.mjOBJ_JOINT, step["check"]["joint_above_deg"][0], f"{at}.check")
         if "site" in step and step["site"] not in robot.sites:
             roles = ", ".join(robot.sites)
             raise w.fail(f"{at}.site", f"'{step['site']}' is not a site role; roles: {roles}")
-        camera = step.get("camera", "wrist")
         if "relative_to" in step and step["relative_to"] not in spec.get("nominal", {}):
             message = f"'{step['relative_to']}' has no nominal placement (top-level 'nominal')"
             raise w.fail(f"{at}.relative_to", message)
-        if step["kind"] == "localize":
-            comps = sorted(c for c in fac.manifest["components"] if c != "robot")
-            if step["component"] not in comps:
-                message = f"'{step['component']}' is not a component; components: "
-                raise w.fail(f"{at}.component", message + ", ".join(comps))
-        if step["kind"] in ("look", "localize") and camera not in robot.cameras:
-            roles = ", ".join(robot.cameras)
-            raise w.fail(f"{at}.camera", f"'{camera}' is not a camera role; roles: {roles}")
