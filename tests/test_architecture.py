@@ -239,3 +239,22 @@ def test_the_docs_number_the_passes_in_the_order_they_run():
     # nowhere else a number: the module docstrings name their pass
     for path in (PACKAGE / "passes").rglob("*.py"):
         assert not re.match(r'"""Pass \d', path.read_text()), path
+
+
+# Trials rebuild jittered facilities: they sit above the builder and the runtime both.
+ABOVE_BOTH = {"urdf2mjcf.runner.trials"}
+
+
+@pytest.mark.parametrize(
+    "module",
+    sorted(m for m in _modules() if m.startswith("urdf2mjcf.runner") and m not in ABOVE_BOTH),
+)
+def test_the_runtime_reads_bundles_not_the_builder(module):
+    """The runtime replays a bundle: it imports neither the facility builder nor the
+    compiler's passes (their shared limits live in urdf2mjcf.limits)."""
+    modules = _modules()
+    found = _imports(module, modules[module], modules)
+    builder = sorted(
+        t for t in found if t.startswith(("urdf2mjcf.facility", "urdf2mjcf.passes"))
+    )
+    assert builder == [], f"{module} imports the builder: {builder}"

@@ -37,6 +37,7 @@ import numpy as np
 from ..assets import content_name
 from ..errors import InputError
 from ..fmt import fmt_vec
+from ..limits import TAG_COUNT, TAG_FAMILY
 from ..passes.emit import EmitResult
 from ..transforms import quat_from_rpy, rpy_to_matrix
 from ..untrusted import excerpt
@@ -48,9 +49,7 @@ if TYPE_CHECKING:
 
     from ..schema import Source
 
-FAMILY = "tag36h11"
-TAG_COUNT = 587
-"""Ids of the 36h11 family: 0 .. 586."""
+FAMILY = TAG_FAMILY
 CELLS = 8
 """The black square: 6 x 6 data cells and a one-cell black border."""
 BORDER_CELLS = 1

@@ -16,23 +16,13 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from ..limits import ANGLE_MAX, LENGTH_MAX, SEED_MAX, TIMESTEP_RANGE  # noqa: F401
 from ..schema import Source
 
-SEED_MAX = 2**32 - 1
-"""Largest seed (``make-facility --seed``, ``facility-demo --seed``, ``rocks.seed``):
-numpy takes any integer >= 0, 32 bits are more trials than anyone runs."""
-LENGTH_MAX = 10_000.0
-"""m: largest coordinate of a placement, a rock area or a keep-out (10 km; the
-lunar terrain is 1 km across)."""
-ANGLE_MAX = 4 * math.pi
-"""rad: largest yaw or roll-pitch-yaw angle (two turns either way)."""
 JITTER_POSITION_MAX = 10.0
 """m: largest +- position range of a component's jitter."""
 JITTER_YAW_MAX = math.pi
 """rad: largest +- yaw range of a component's jitter (a half turn: any heading)."""
-TIMESTEP_RANGE = (1e-5, 0.1)
-"""s: ``simulation.timestep`` (MuJoCo's default is 0.002); below it one simulated
-second is over 100,000 steps, above it no contact is stable."""
 ITERATIONS_MAX = 10_000
 """``simulation.iterations`` (MuJoCo's default 100): solver iterations per step."""
 IMPRATIO_MAX = 1_000.0

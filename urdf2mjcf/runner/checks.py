@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FacilityError
-from ..facility.values import ANGLE_MAX, LENGTH_MAX
+from ..limits import ANGLE_MAX, LENGTH_MAX
 from ..schema import Source
 from ..untrusted import excerpt
 

@@ -42,7 +42,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
-from ..facility.fiducials import TAG_COUNT
+from ..limits import TAG_COUNT
 from . import ik, localize, perception
 from .checks import (
     HINGE_STEPS_MAX,

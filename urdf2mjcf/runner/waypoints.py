@@ -22,7 +22,7 @@ from typing import Any
 import mujoco
 
 from ..errors import FacilityError
-from ..facility.values import TIMESTEP_RANGE
+from ..limits import TIMESTEP_RANGE
 from ..schema import Source, load
 from .checks import (  # noqa: F401  (the limits: documented as waypoints.*)
     DURATION_MAX,
