@@ -149,3 +149,36 @@ def test_a_collision_only_compile_is_given_only_the_files_it_names(written, monk
     assert meshes and all(any(m in name for name in given[0]) for m in meshes)
     left_out = set(files) - given[0]
     assert "robot.xml" in left_out and any("colored_box" in n for n in left_out), left_out
+
+
+def test_the_scene_pass_reuses_the_actuator_pass_compile_of_the_same_shape(tmp_path, monkeypatch):
+    """The actuators pass compiles the robot (to size its gains); the scene pass needs only
+    where the same bodies and geoms are at home: the conversion hands it that model
+    (mjmodel.HomeCompiles), and the floor it places is where a fresh compile puts it."""
+    calls = []
+    real = mjmodel.compile_xml
+
+    def counting(xml, files, warnings=None):
+        text = xml if isinstance(xml, bytes) else xml.encode()
+        if b"<include" not in text:  # validation compiles scene.xml, which includes the robot
+            calls.append(len(text))
+        return real(xml, files, warnings)
+
+    monkeypatch.setattr(mjmodel, "compile_xml", counting)
+    source = Path(__file__).parent / "data" / "sim_robot" / "urdf" / "sim_arm.urdf.xacro"
+    report = urdf2mjcf.convert(source, tmp_path / "robot.xml", use_environment=False, certify=False)
+    assert report.compiled is not None
+    assert len(calls) == 1, "the scene pass compiled the robot again"
+    monkeypatch.setattr(mjmodel, "compile_xml", real)
+    m = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
+    d = at_home(m)
+    lowest = min(
+        d.geom_xpos[g][2] - m.geom_rbound[g]
+        for g in range(m.ngeom)
+        if m.geom_contype[g] or m.geom_conaffinity[g]
+    )
+    scene = mujoco.MjModel.from_xml_path(str(tmp_path / "scene.xml"))
+    floor = scene.geom("floor")
+    # the floor is at or below the robot's lowest point (never above the origin), and no
+    # lower than that point's bounding sphere allows
+    assert lowest - 1e-9 <= floor.pos[2] <= 0.0
