@@ -4,6 +4,7 @@
     python bench/facility.py --profile          # also MuJoCo's timers, and the unfiltered twin
     python bench/facility.py --scene build/x    # measure a facility built earlier (no build)
     python bench/facility.py --write-docs       # also update docs/benchmarks.md (latest + history)
+    python bench/facility.py --collision-baseline decompose   # also the recipe's old shapes
 
 Build: `make-facility` on recipes/imetro.yaml with an empty decomposition
 cache (cold) and again with that cache (warm); once more without folding the
@@ -12,6 +13,12 @@ on one core with cameras off (no rendering), from the home keyframe with the
 servos holding it, of the whole facility and of the robot compiled on its own
 (components/imetro_robot), in ``--runs`` alternating pairs; the ratio is the
 median of the pairs' ratios (a shared machine is noisy: read the spread).
+
+Collision: what the recipe's collision meshes became (the conversion's notes: meshes
+per shape, the primitive geoms, the largest deviation of one); with
+``--collision-baseline SHAPE`` the recipe is also built with ``collision.default``
+set to SHAPE (``decompose``: the converter's default, the setting before the recipe
+had the key) and stepped in the same alternation.
 
 The history table in docs/benchmarks.md has a column for each ratio we track:
 this script fills "facility / robot steps"; another benchmark fills "warm
@@ -181,13 +188,41 @@ def record_history(values: dict[str, object], docs: Path = DOCS) -> None:
 
 
 UNFOLDED = "facility, fixtures not folded"
+BASELINE = "facility, collision baseline"
+DEVIATION = re.compile(r"Hausdorff ([0-9.]+) mm, volume ratio ([0-9.]+)")
+
+
+def collision_figures(report) -> dict:
+    """What the conversion made of the collision meshes, from its notes (``api.Report``):
+    distinct meshes per shape, the geoms that are fitted primitives (a set counts each),
+    and the largest one-sided Hausdorff distance (mm) and volume ratio of a fit."""
+    primitive = report.primitive
+    kinds = [n.message.split(" ", 1)[0] for n in primitive]
+    deviations = [DEVIATION.search(n.message) for n in primitive]
+    figures = [(float(d.group(1)), float(d.group(2))) for d in deviations if d]
+    return {
+        "meshes": {
+            "primitive": len(primitive),
+            "hull": len(report.of_kind("hull")),
+            "decomposed": len(report.of_kind("decomposed")) + len(report.of_kind("cached")),
+        },
+        "primitive_geoms": sum(len(k.split("+")) for k in kinds),
+        "worst_hausdorff_mm": max((h for h, _ in figures), default=None),
+        "worst_volume_ratio": max((v for _, v in figures), default=None),
+    }
 
 
 def measure(
-    scene: Path, robot: Path | None, runs: int, with_profile: bool, unfolded: Path | None = None
+    scene: Path,
+    robot: Path | None,
+    runs: int,
+    with_profile: bool,
+    unfolded: Path | None = None,
+    baseline: Path | None = None,
 ) -> dict:
     """``unfolded``: the same facility built with ``fold_fixtures=False``, measured in
-    the same alternation (the gain of urdf2mjcf.facility.fold)."""
+    the same alternation (the gain of urdf2mjcf.facility.fold); ``baseline``: the same
+    facility built with the baseline collision shapes, likewise."""
     import mujoco
 
     models = {"facility": mujoco.MjModel.from_xml_path(str(scene))}
@@ -195,6 +230,8 @@ def measure(
         models["robot"] = mujoco.MjModel.from_xml_path(str(robot))
     if unfolded is not None:
         models[UNFOLDED] = mujoco.MjModel.from_xml_path(str(unfolded))
+    if baseline is not None:
+        models[BASELINE] = mujoco.MjModel.from_xml_path(str(baseline))
     if with_profile:
         models["facility, every geom colliding"] = unfiltered(scene)
     sps = alternate(models, runs)
@@ -215,6 +252,15 @@ def measure(
         ratios = [f / r for f, r in zip(sps[UNFOLDED], sps["robot"], strict=True)]
         out["unfolded_steps_per_s"] = round(med[UNFOLDED])
         out["unfolded_vs_robot"] = round(statistics.median(ratios), 3)
+    if baseline is not None:
+        ratios = [f / b for f, b in zip(sps["facility"], sps[BASELINE], strict=True)]
+        out["baseline_steps_per_s"] = round(med[BASELINE])
+        out["baseline_steps_per_s_range"] = [
+            round(min(sps[BASELINE])),
+            round(max(sps[BASELINE])),
+        ]
+        out["facility_vs_baseline"] = round(statistics.median(ratios), 3)
+        out["facility_vs_baseline_range"] = [round(min(ratios), 3), round(max(ratios), 3)]
     out["conversion_vs_native_load"] = None  # another benchmark's: see record_history
     out["runs"] = runs
     if with_profile:
@@ -238,6 +284,12 @@ def main() -> int:
     )
     parser.add_argument("--scene", type=Path, help="a built facility folder: measure it, no build")
     parser.add_argument("--note", default="", help="a note for the history row")
+    parser.add_argument(
+        "--collision-baseline",
+        choices=("decompose", "hull", "primitive", "auto"),
+        help="also build the recipe with collision.default set to this and step it in "
+        "the same alternation (decompose: the converter's default)",
+    )
     args = parser.parse_args()
 
     result: dict = {}
@@ -270,12 +322,33 @@ def main() -> int:
                 components=False,
                 fold_fixtures=False,
             )
+            result["collision"] = {
+                "setting": dict(recipe.collision) or "the converter's default",
+                **collision_figures(report.conversion),
+            }
+            baseline = None
+            if args.collision_baseline is not None:
+                sets = {"collision.default": args.collision_baseline}
+                old = build_facility(
+                    load_recipe(ROOT / "recipes" / "imetro.yaml", sets),
+                    Path(tmp) / "baseline",
+                    root=ROOT,
+                    cache_dir=cache,
+                    components=False,
+                )
+                baseline = old.scene
+                result["collision_baseline"] = {
+                    "setting": args.collision_baseline,
+                    **collision_figures(old.conversion),
+                    "same_scene": old.scene.read_bytes() == report.scene.read_bytes(),
+                }
             result |= measure(
                 report.scene,
                 report.components.get("imetro_robot"),
                 args.runs,
                 args.profile,
                 unfolded=plain.scene,
+                baseline=baseline,
             )
             result |= {"bodies": counts["bodies"], "dofs": counts["dofs"]}
     result |= {"machine": machine(), "commit": commit(), "date": time.strftime("%Y-%m-%d")}
@@ -320,6 +393,13 @@ def write_docs(result: dict, note: str) -> None:
         )
     if result.get("unfolded_vs_robot") is not None:
         same_run = f"fixtures not folded, same run: {result['unfolded_vs_robot']}"
+        note = f"{note}; {same_run}" if note else same_run
+    if result.get("baseline_steps_per_s") is not None:
+        shape = result["collision_baseline"]["setting"]
+        same_run = (
+            f"collision {shape}, same run: {result['baseline_steps_per_s']} steps/s "
+            f"(facility / it {result['facility_vs_baseline']})"
+        )
         note = f"{note}; {same_run}" if note else same_run
     record_history(
         {

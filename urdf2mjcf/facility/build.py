@@ -77,8 +77,16 @@ def _convert_options(
     workers: int,
     cache_dir: Path | None,
     progress: Callable[[int, int, str], None] | None,
+    source: Path | None = None,
+    args: Mapping[str, str] | None = None,
+    prefix: str | None = None,
 ) -> dict:
-    return {
+    """:func:`api.convert`'s options for ``source``: the facility (``prefix`` None, with
+    its xacro ``args``) or a component compiled on its own (with its ``prefix``). The
+    recipe's ``collision.links`` are the facility's link names: the facility must have
+    each (else an error naming the recipe and the key); a component takes those it has
+    (:meth:`Recipe.link_collision`)."""
+    options: dict[str, Any] = {
         "package_paths": [root / d for d in PACKAGE_DIRS],
         "packages": {name: root / d for name, d in NAMED_PACKAGES.items()},
         "use_environment": False,
@@ -91,6 +99,24 @@ def _convert_options(
         "progress": progress,
         "overwrite": True,
     }
+    if recipe.collision.get("default") is not None:
+        options["collision_shape"] = recipe.collision["default"]
+    if recipe.collision.get("links") and source is not None:
+        from ..passes import parse, xacro  # the link names only: no mesh is read
+
+        config = api.make_options(args=args, **options)
+        robot = parse.run(xacro.run(source, config.xacro), config.parse).robot
+        links = {link.name for link in robot.links}
+        if prefix is None:
+            for name in recipe.collision["links"]:
+                if name not in links:
+                    raise InputError(
+                        "no such link in the facility",
+                        file=recipe.path or source,
+                        element=f"collision.links.{untrusted.excerpt(name, 60)}",
+                    )
+        options["link_collision"] = recipe.link_collision(links, prefix or "")
+    return options
 
 
 def build_facility(
@@ -135,7 +161,7 @@ def build_facility(
         rocks = scatter(recipe.rocks, rock_seed, clear_of, recipe.path)
         args["rocks"] = rocks_arg(rocks)
     options = _convert_options(
-        root, recipe, workers=workers, cache_dir=cache_dir, progress=progress
+        root, recipe, workers=workers, cache_dir=cache_dir, progress=progress, source=top, args=args
     )
 
     present = [n for n in table if n in moved]
@@ -160,7 +186,15 @@ def build_facility(
                     log.info("no standalone description for %s (%s)", asset, comp.standalone)
                     continue
                 target = stage / "components" / asset / f"{asset}.xml"
-                comp_options = dict(options)
+                comp_options = _convert_options(
+                    root,
+                    recipe,
+                    workers=workers,
+                    cache_dir=cache_dir,
+                    progress=progress,
+                    source=src,
+                    prefix=comp.prefix,
+                )
                 if comp.roles is None:  # the actuator file belongs to the robot
                     comp_options["actuator_config"] = None
                 api.convert(src, target, **comp_options)
@@ -252,6 +286,8 @@ def recipe_data(recipe: Recipe) -> dict:
     if recipe.rocks:
         data["rocks"] = _plain(recipe.rocks)
     data["noise"] = _plain(recipe.noise)
+    if recipe.collision:
+        data["collision"] = _plain(recipe.collision)
     return data
 
 

@@ -17,6 +17,9 @@ A recipe is a YAML file (see ``recipes/`` and docs/facility.md)::
     simulation: {timestep: 0.002, integrator: implicitfast, solver: Newton}
     actuator_config: config/actuators.yaml
     rocks: {count: 24, seed: 3, area: [-30, 30, -30, 30]}   # optional, see scatter.py
+    collision:                        # what collision meshes become (optional)
+      default: auto                   # decompose (absent: the default), hull, primitive, auto
+      links: {gripper_link: hull}     # per link, named as in the facility
 
 The component table maps each component's name to ``{asset, standalone, flag,
 prefix, roles, free}`` (see :class:`Component`); the name is also the stem of its
@@ -35,13 +38,14 @@ valid ones; every error names the file, the key and its line.
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from ..ir import COLLISION_SHAPES
 from ..schema import Source, load
 from ..untrusted import excerpt, is_folder_name
 from .fiducials import Fiducial, check_unique, parse_fiducials
@@ -78,8 +82,14 @@ TOP_KEYS = (
     "gravcomp",
     "rocks",
     "noise",
+    "collision",
 )
-SECTIONS = ("components", "flags", "placements", "jitter", "simulation", "rocks", "noise")
+SECTIONS = (
+    "components", "flags", "placements", "jitter", "simulation", "rocks", "noise", "collision"
+)
+COLLISION_KEYS = ("default", "links")
+LINK_NAME_MAX = 255
+"""Characters of a link name under ``collision.links``."""
 JITTER_KEYS = ("position", "yaw")
 JITTER_DEFAULT = "default"
 SIMULATION_KEYS = ("timestep", "integrator", "solver", "cone", "iterations", "impratio")
@@ -145,6 +155,23 @@ class Recipe:
     """A seeded scatter of rocks (``urdf2mjcf.facility.scatter``); empty: none."""
     noise: Mapping[str, Any] = field(default_factory=dict)
     """Sensor noise per channel (``urdf2mjcf.facility.noise``): settings, or False (off)."""
+    collision: Mapping[str, Any] = field(default_factory=dict)
+    """What collision meshes become: ``default`` (a shape of ``COLLISION_SHAPES``; absent:
+    the converter's default) and ``links`` (facility link name -> shape); empty: the
+    converter's default everywhere (see :meth:`link_collision`)."""
+
+    def link_collision(self, links: Collection[str], prefix: str = "") -> dict[str, str]:
+        """The ``collision.links`` entries that apply to a description with ``links``: a
+        link of that name, or, for a component compiled on its own, the link that is
+        that name without the component's ``prefix`` (its name in the facility is
+        ``prefix`` + its own)."""
+        out: dict[str, str] = {}
+        for name, shape in (self.collision.get("links") or {}).items():
+            if name in links:
+                out[name] = shape
+            elif prefix and name.startswith(prefix) and name[len(prefix) :] in links:
+                out[name[len(prefix) :]] = shape
+        return out
 
     def jitter_ranges(self, name: str) -> Ranges:
         """A component's jitter ranges: its own, else the default (missing ones are 0)."""
@@ -369,6 +396,31 @@ def _simulation(data: Mapping, src: Source) -> dict:
     return simulation
 
 
+def _shape(value: Any, src: Source, where: str) -> str:
+    if not isinstance(value, str) or value not in COLLISION_SHAPES:
+        shown = excerpt(str(value), 20)
+        raise src.fail(where, f"'{shown}' is not one of {', '.join(COLLISION_SHAPES)}")
+    return value
+
+
+def _collision(data: Mapping, src: Source) -> dict:
+    """``collision: {default: SHAPE, links: {LINK: SHAPE}}``: what the conversion makes
+    of collision meshes (``urdf2mjcf.passes.collision``); the links are checked against
+    the facility when it is built."""
+    section = src.mapping(data.get("collision"), "collision")
+    src.known(section, COLLISION_KEYS, "collision")
+    out: dict[str, Any] = {}
+    if section.get("default") is not None:
+        out["default"] = _shape(section["default"], src, "collision.default")
+    links = src.mapping(section.get("links"), "collision.links", "a mapping of links to shapes")
+    if links:
+        for name in links:
+            if not name or len(name) > LINK_NAME_MAX:
+                raise src.fail(f"collision.links.{name}", "is not a link name")
+        out["links"] = {n: _shape(v, src, f"collision.links.{n}") for n, v in links.items()}
+    return out
+
+
 def parse_recipe(
     data: Any, path: Path | None | Source, root: Path | None = None
 ) -> Recipe:
@@ -419,6 +471,7 @@ def parse_recipe(
         description=description,
         rocks=parse_rocks(data.get("rocks"), src),
         noise=parse_noise(data.get("noise"), src),
+        collision=_collision(data, src),
     )
 
 
