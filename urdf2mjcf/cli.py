@@ -18,6 +18,7 @@ from .cli_common import (
     pairs,
     quiet_option,
     shared_option,
+    shared_params,
 )
 from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .command_runner import run_command
@@ -269,12 +270,88 @@ def _echo_certificate_failures(certificate: Certificate, verbose: int) -> None:
     click.echo(printable(f"{certificate.summary()}; nothing written"), err=True)
 
 
+def _view(
+    source: Path,
+    xacro_args: tuple[str, ...],
+    port: int,
+    no_browser: bool,
+    desktop: bool,
+    **kw: Any,
+) -> None:
+    """Convert SOURCE and show it in MuJoCo's browser viewer; convert again, and show the
+    new model, whenever the description or a file it pulled in changes.
+
+    xacro arguments are given as NAME:=VALUE. Runs until Ctrl-C or SIGTERM (exit 0); a
+    conversion that fails on the way prints its error: line and the viewer keeps the
+    last good model. See docs/viewing.md."""
+    from . import api
+    from .batch import _options as conversion_options  # the converter's options, as batch
+    from .cache import default_cache_dir
+    from .view.watch import serve
+
+    configure_logging(0, False)
+    options = api.make_options(
+        args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"), **conversion_options(kw)
+    )
+
+    def describe(report: Any) -> list[str]:
+        _echo_notes(report.notes, 0)
+        lines = [f"converted {report.summary()}"]
+        if report.certificate is not None:
+            lines.append(report.certificate.summary())
+        return lines
+
+    try:
+        cache = kw["cache_dir"] or default_cache_dir()
+    except RuntimeError:  # no home folder: nothing cached to leave out of the watch
+        cache = None
+    serve(
+        source,
+        lambda out: api.convert(source, out, options),
+        describe,
+        scene=not kw["no_scene"],
+        port=port,
+        browser=not no_browser,
+        desktop=desktop,
+        cache=cache,
+    )
+
+
+view_command = click.Command(
+    "urdf2mjcf view",
+    callback=_view,
+    params=[
+        click.Argument(["source"], type=click.Path(path_type=Path, dir_okay=False)),
+        click.Argument(["xacro_args"], nargs=-1, metavar="[NAME:=VALUE]..."),
+        click.Option(
+            ["--port"],
+            type=BoundedInt(0, 65535),
+            default=0,
+            help="Port of the browser viewer (0: the first free one from 8080 up).",
+        ),
+        click.Option(
+            ["--no-browser"], is_flag=True, help="Do not open a browser (the address is printed)."
+        ),
+        click.Option(
+            ["--desktop"],
+            is_flag=True,
+            help="MuJoCo's desktop viewer instead of the browser one (needs a display).",
+        ),
+        *shared_params(),  # the converter's options, as 'urdf2mjcf' and 'batch' take them
+    ],
+    help=_view.__doc__,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
 def urdf2mjcf_main() -> None:
     # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
-    # `urdf2mjcf verify ...` certifies a model; anything else is a conversion, whose first
-    # argument is the SOURCE file (a file named 'cache', 'batch' or 'verify' is given as
-    # ./cache, ./batch, ./verify).
+    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one; anything
+    # else is a conversion, whose first argument is the SOURCE file (a file named 'cache',
+    # 'batch', 'verify' or 'view' is given as ./cache, ./batch, ./verify, ./view).
     args = sys.argv[1:]
+    if args[:1] == ["view"]:
+        run_command(view_command, args[1:], prog_name="urdf2mjcf view")
     if args[:1] == ["cache"]:
         run_command(cache_group, args[1:], prog_name="urdf2mjcf cache")
     if args[:1] == ["batch"]:
@@ -409,6 +486,12 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
 @click.option(
     "--demo", is_flag=True, help="Then replay the logistics demo in it (see facility-demo)."
 )
+@click.option(
+    "--view",
+    is_flag=True,
+    help="Then show it in MuJoCo's browser viewer until Ctrl-C (with --demo: the demo's "
+    "run, live).",
+)
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
 @quiet_option()
 @click.pass_context
@@ -424,6 +507,7 @@ def make_facility_command(
     jobs: int,
     cache_dir: Path | None,
     demo: bool,
+    view: bool,
     verbose: int,
     quiet: bool,
 ) -> None:
@@ -476,7 +560,11 @@ def make_facility_command(
     if demo:
         from .runner.cli import facility_demo_command
 
-        ctx.invoke(facility_demo_command, scene=report.output)
+        ctx.invoke(facility_demo_command, scene=report.output, view=view)
+    if view:
+        from .view.watch import show
+
+        show(report.scene, what=f"{parsed.name} ({report.scene})")
 
 
 def make_facility_main() -> None:

@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING
 import click
 
 from ..bundle import MANIFEST
-from ..cli_types import BoundedInt
-from ..facility.values import SEED_MAX
+from ..cli_types import BoundedInt, FiniteFloat
+from ..limits import SEED_MAX
+from ..view.live import PACE_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
 from .executors import EXECUTORS, Kind, import_ray
 
@@ -136,6 +137,19 @@ def _frames_folder(
     is_flag=True,
     help="replace a --report file, or write into a --frames folder, that we did not write",
 )
+@click.option(
+    "--view",
+    is_flag=True,
+    help="show the run live in MuJoCo's browser viewer (its address goes to stderr); "
+    "not with --trials",
+)
+@click.option(
+    "--pace",
+    type=FiniteFloat(0.0, PACE_MAX, low_open=True),
+    default=1.0,
+    show_default=True,
+    help="with --view: simulated seconds per wall-clock second",
+)
 def facility_demo_command(
     scene: Path,
     waypoints: Path | None,
@@ -149,6 +163,8 @@ def facility_demo_command(
     executor: Kind,
     address: str | None,
     overwrite: bool,
+    view: bool,
+    pace: float,
 ) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
     from .. import headless
@@ -182,6 +198,8 @@ def facility_demo_command(
         out.check_file(report, overwrite, GENERATOR)
     if executor != "local" and not trials:
         raise click.UsageError(f"--executor {executor} runs --trials; give --trials N")
+    if view and trials:
+        raise click.UsageError("--view shows one run, not --trials")
     if address and executor != "ray":
         raise click.UsageError("--address needs --executor ray")
     if address and workers:
@@ -223,7 +241,12 @@ def facility_demo_command(
                 result, success = _trials(run, seed, trials, staged)
             else:
                 result, success = _once(
-                    fac, spec, staged, record, record_to.tmp if record_to else None
+                    fac,
+                    spec,
+                    staged,
+                    record,
+                    record_to.tmp if record_to else None,
+                    pace if view else None,
                 )
             if report and plot_to is not None:
                 plot_outcomes(result["aggregate"], plot_to.tmp)
@@ -324,9 +347,11 @@ def _once(
     frames: Path | None,
     record: Path | None = None,
     record_to: Path | None = None,
+    pace: float | None = None,
 ) -> tuple[dict, bool]:
     """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
-    reserved temporary file) when given."""
+    reserved temporary file) when given; with ``pace``, the run is shown live at that
+    pace (the view only reads the state)."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
@@ -348,7 +373,13 @@ def _once(
         )
         recorder.step()  # the start
         demo.ctl.on_step.append(recorder.step)
+    live = None
     try:
+        if pace is not None:
+            from ..view.live import LiveView
+
+            live = LiveView(fac.model, fac.data, pace=pace, what=f"facility-demo {fac.folder}")
+            demo.ctl.on_step.append(live.step)
         res = demo.run()
     except BaseException:
         if recorder is not None:
@@ -356,6 +387,8 @@ def _once(
         raise
     finally:
         demo.close()
+        if live is not None:
+            live.close()
     if recorder is not None:  # a failed demo is recorded too: that is when one looks
         recorder.close()
         click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")

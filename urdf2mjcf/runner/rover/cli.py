@@ -12,6 +12,7 @@ from typing import Any
 import click
 
 from ...cli_types import FiniteFloat
+from ...view.live import PACE_MAX
 from .roles import RoverError
 from .sim import SETTLE_MAX, RoverSim
 from .tasks import ArmWave, Straight, Task, Turn
@@ -94,6 +95,18 @@ RATE_MAX = 360.0
 @click.option(
     "--overwrite", is_flag=True, help="replace a --report or --record file we did not write"
 )
+@click.option(
+    "--view",
+    is_flag=True,
+    help="show the drive live in MuJoCo's browser viewer (its address goes to stderr)",
+)
+@click.option(
+    "--pace",
+    type=FiniteFloat(0.0, PACE_MAX, low_open=True),
+    default=1.0,
+    show_default=True,
+    help="with --view: simulated seconds per wall-clock second",
+)
 def rover_drive_command(
     scene: Path,
     names: tuple[str, ...],
@@ -106,6 +119,8 @@ def rover_drive_command(
     report: Path | None,
     record: Path | None,
     overwrite: bool,
+    view: bool,
+    pace: float,
 ) -> None:
     """Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, then
     turn in place; print wheel odometry against the true pose."""
@@ -123,8 +138,9 @@ def rover_drive_command(
         # fails first), and renamed into place together at the end.
         report_to = files.enter_context(out.reserved_file(report)) if report else None
         record_to = files.enter_context(out.reserved_file(record)) if record else None
+        view_pace = pace if view else None
         results, warnings = _drive(
-            scene, names, distance, speed, turn, rate, arm, settle, record, record_to
+            scene, names, distance, speed, turn, rate, arm, settle, record, record_to, view_pace
         )
         if report_to is not None:
             data = {"scene": str(scene), "tasks": results, "warnings": warnings}
@@ -147,10 +163,12 @@ def _drive(
     settle: float,
     record: Path | None,
     record_to: Any,
+    pace: float | None = None,
 ) -> tuple[list[dict], dict[str, int]]:
     """Drive, print each task's summary; the results and MuJoCo's warnings. The
-    recording of ``record`` goes to ``record_to`` (its reserved file)."""
-    recorder = None
+    recording of ``record`` goes to ``record_to`` (its reserved file); with ``pace``,
+    the drive is shown live at that pace (it only reads the state)."""
+    recorder = live = None
     try:
         sim = RoverSim(scene)
         chosen = list(names) or list(sim.rovers)
@@ -164,6 +182,11 @@ def _drive(
             recorder = Recorder(sim.m, sim.d, sources, to, generator="rover-drive")
             recorder.step()  # the start
             sim.on_step.append(recorder.step)
+        if pace is not None:
+            from ...view.live import LiveView
+
+            live = LiveView(sim.m, sim.d, pace=pace, what=f"rover-drive {scene}")
+            sim.on_step.append(live.step)
         sim.settle(settle)
         results: list[dict] = []
         plans: list[tuple[str, Callable[[], Task]]] = []
@@ -185,4 +208,6 @@ def _drive(
     finally:
         if recorder is not None:
             recorder.abort()  # after close(): nothing to do; else nothing is left behind
+        if live is not None:
+            live.close()
     return results, warnings

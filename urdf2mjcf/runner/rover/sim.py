@@ -9,7 +9,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ...facility.values import TIMESTEP_RANGE
+from ...limits import TIMESTEP_RANGE
 from ..load import LoadError, open_facility
 from .odometry import Odometry, rotation_matrix, true_pose, yaw_of
 from .report import TaskReport, _Track
