@@ -22,6 +22,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     # IK (mink), collision-free planning (ompl) and its time parameterisation (toppra),
     # AprilTags (cv2: drawn into a facility, detected by the demo), the trials' plot
     "sim": ("mink", "ompl", "toppra", "cv2", "matplotlib"),
+    # the live Foxglove stream (facility-demo --foxglove, rover-drive --foxglove)
+    "live": ("foxglove",),
 }
 """Extra name -> the modules it provides (import names, as pyproject.toml's extra installs
 them: cv2 is opencv-python-headless)."""

@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 import click
 
 from ..bundle import MANIFEST
-from ..cli_types import BoundedInt, FiniteFloat
+from ..cli_types import BoundedInt
 from ..limits import SEED_MAX
-from ..view.live import PACE_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
 from .executors import EXECUTORS, Kind, import_ray
+from .live_options import live_options
 
 if TYPE_CHECKING:
     from .load import Facility
@@ -137,19 +137,7 @@ def _frames_folder(
     is_flag=True,
     help="replace a --report file, or write into a --frames folder, that we did not write",
 )
-@click.option(
-    "--view",
-    is_flag=True,
-    help="show the run live in MuJoCo's browser viewer (its address goes to stderr); "
-    "not with --trials",
-)
-@click.option(
-    "--pace",
-    type=FiniteFloat(0.0, PACE_MAX, low_open=True),
-    default=1.0,
-    show_default=True,
-    help="with --view: simulated seconds per wall-clock second",
-)
+@live_options("run", "--view or --foxglove", "; not with --trials")
 def facility_demo_command(
     scene: Path,
     waypoints: Path | None,
@@ -165,6 +153,8 @@ def facility_demo_command(
     overwrite: bool,
     view: bool,
     pace: float,
+    foxglove: int | None,
+    foxglove_wait: bool,
 ) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
     from .. import headless
@@ -200,6 +190,14 @@ def facility_demo_command(
         raise click.UsageError(f"--executor {executor} runs --trials; give --trials N")
     if view and trials:
         raise click.UsageError("--view shows one run, not --trials")
+    if foxglove is not None and trials:
+        raise click.UsageError("--foxglove streams one run, not --trials")
+    if foxglove_wait and foxglove is None:
+        raise click.UsageError("--foxglove-wait needs --foxglove")
+    if foxglove is not None:
+        from ..extras import require
+
+        require("live", "facility-demo --foxglove")
     if address and executor != "ray":
         raise click.UsageError("--address needs --executor ray")
     if address and workers:
@@ -247,6 +245,7 @@ def facility_demo_command(
                     record,
                     record_to.tmp if record_to else None,
                     pace if view else None,
+                    _Live(foxglove, pace, foxglove_wait) if foxglove is not None else None,
                 )
             if report and plot_to is not None:
                 plot_outcomes(result["aggregate"], plot_to.tmp)
@@ -341,6 +340,15 @@ def _trials(run: TrialRun, seed: int, trials: int, frames: Path | None) -> tuple
     return result, agg["successes"] == len(results)
 
 
+@dataclass(frozen=True)
+class _Live:
+    """``--foxglove PORT``, ``--pace``, ``--foxglove-wait``."""
+
+    port: int
+    pace: float
+    wait: bool
+
+
 def _once(
     fac: Facility,
     spec: dict,
@@ -348,15 +356,25 @@ def _once(
     record: Path | None = None,
     record_to: Path | None = None,
     pace: float | None = None,
+    stream: _Live | None = None,
 ) -> tuple[dict, bool]:
     """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
     reserved temporary file) when given; with ``pace``, the run is shown live at that
-    pace (the view only reads the state)."""
+    pace (the view only reads the state); with ``stream``, the recording's messages are
+    served to Foxglove while it runs."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
-    recorder = None
-    if record:
+    recorder = foxglove = None
+    if stream is not None:
+        from .foxglove_live import FoxgloveStream
+
+        try:
+            foxglove = FoxgloveStream(fac.data, stream.port, pace=stream.pace, name=GENERATOR)
+        except BaseException:
+            demo.close()
+            raise
+    if record or foxglove is not None:
         from .noise import SensorNoise
         from .record import Recorder, facility_sources
 
@@ -367,14 +385,22 @@ def _once(
             fac.model,
             fac.data,
             facility_sources(fac),
-            record_to or record,
+            (record_to or record) if record else None,
             generator=GENERATOR,
             noise=noise,
+            sinks=[foxglove] if foxglove is not None else (),
         )
         recorder.step()  # the start
         demo.ctl.on_step.append(recorder.step)
     live = None
     try:
+        if foxglove is not None and stream is not None:
+            # Once every topic has its channel: a client sees them all when it connects.
+            click.echo(f"streaming to Foxglove at {foxglove.address}", err=True)
+            if stream.wait:
+                click.echo("waiting for a Foxglove client to subscribe", err=True)
+            foxglove.start(wait=stream.wait)
+            demo.ctl.on_step.append(foxglove.step)
         if pace is not None:
             from ..view.live import LiveView
 
@@ -389,7 +415,9 @@ def _once(
         demo.close()
         if live is not None:
             live.close()
-    if recorder is not None:  # a failed demo is recorded too: that is when one looks
+        if foxglove is not None:
+            foxglove.close()
+    if recorder is not None and record:  # a failed demo is recorded too: that is when one looks
         recorder.close()
         click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")
     result = res.to_json()

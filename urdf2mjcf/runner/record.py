@@ -37,10 +37,10 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 import mujoco
 import numpy as np
@@ -376,29 +376,27 @@ class Recorder:
 
     Call :meth:`step` after every physics step (the first call records the start);
     :meth:`close` finishes the file and moves it into place, :meth:`abort` leaves
-    nothing. Also a context manager (an exception aborts)."""
+    nothing. Also a context manager (an exception aborts). Each message, built once,
+    also goes to every one of ``sinks`` as ``(topic, datatype, message, stamp_ns)``
+    (the live Foxglove stream); with ``path`` None it goes only there."""
 
     def __init__(
         self,
         m: mujoco.MjModel,
         d: mujoco.MjData,
         sources: Sources,
-        path: str | Path,
+        path: str | Path | None,
         *,
         rates: Rates | None = None,
         generator: str = "urdf2mjcf",
         metadata: Mapping[str, str] | None = None,
         noise: SensorNoise | None = None,
+        sinks: Sequence[Callable[[str, str, dict, int], None]] = (),
     ) -> None:
         """``noise``: images and wrenches as the real sensors read them (a
         :class:`~urdf2mjcf.runner.noise.SensorNoise` of its own, so that recording draws
         nothing from the run's noise); None: ideal. Joint states, TF and IMU are exact."""
-        module = _writer_module()
-        self.path = Path(path)
-        if module is None:
-            raise OutputError(
-                f"recording needs the MCAP libraries: {INSTALL}", file=self.path, element="--record"
-            )
+        self.sinks = list(sinks)
         self.m, self.d, self.src, self.noise = m, d, sources, noise
         self.rates = rates or Rates()
         self.counts: dict[str, int] = {}
@@ -406,8 +404,23 @@ class Recorder:
         self._far = float(m.vis.map.zfar * m.stat.extent)
         self._edges = self._tree_edges()
         self._attached = self._attached_frames()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}-", dir=self.path.parent)
+        self._closed = False
+        self._file: BinaryIO | None = None
+        self._writer: Any = None
+        self.path = None if path is None else Path(path)
+        if path is not None:
+            self._open(Path(path), generator, metadata)
+        self._jobs = self._clocks()
+        self._joint_names = [self.m.joint(j).name for j in sources.joints]
+
+    def _open(self, path: Path, generator: str, metadata: Mapping[str, str] | None) -> None:
+        module = _writer_module()
+        if module is None:
+            raise OutputError(
+                f"recording needs the MCAP libraries: {INSTALL}", file=path, element="--record"
+            )
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
         self._tmp = Path(tmp)
         umask = os.umask(0)
         os.umask(umask)
@@ -426,21 +439,23 @@ class Recorder:
                 "sensor_msgs/msg/Imu",
             )
         }
+
+    def _clocks(self) -> list[tuple[_Clock, Callable[[dict], None]]]:
+        m, d, sources = self.m, self.d, self.src
         t0, dt = float(d.time), float(m.opt.timestep)
         r = self.rates
-        self._jobs: list[tuple[_Clock, Callable[[dict], None]]] = []
+        jobs: list[tuple[_Clock, Callable[[dict], None]]] = []
         if sources.joints:
-            self._jobs.append((_Clock(r.joint_states, t0, dt), self._joint_states))
+            jobs.append((_Clock(r.joint_states, t0, dt), self._joint_states))
         if self._edges or sources.free or self._attached:
-            self._jobs.append((_Clock(r.tf, t0, dt), self._tf))
+            jobs.append((_Clock(r.tf, t0, dt), self._tf))
         if sources.wrenches:
-            self._jobs.append((_Clock(r.wrench, t0, dt), self._wrenches))
+            jobs.append((_Clock(r.wrench, t0, dt), self._wrenches))
         if sources.imus:
-            self._jobs.append((_Clock(r.imu, t0, dt), self._imus))
+            jobs.append((_Clock(r.imu, t0, dt), self._imus))
         if sources.cameras:
-            self._jobs.append((_Clock(r.images, t0, dt), self._images))
-        self._joint_names = [self.m.joint(j).name for j in sources.joints]
-        self._closed = False
+            jobs.append((_Clock(r.images, t0, dt), self._images))
+        return jobs
 
     # ------------------------------------------------------------ frames
     def _tree_edges(self) -> list[tuple[int, int]]:
@@ -493,14 +508,17 @@ class Recorder:
     # ------------------------------------------------------------ writing
     def _write(self, topic: str, datatype: str, msg: dict) -> None:
         ns = int(round(float(self.d.time) * 1e9))
-        self._writer.write_message(
-            topic,
-            self._schemas[datatype],
-            msg,
-            log_time=ns,
-            publish_time=ns,
-            sequence=self.counts.get(topic, 0),
-        )
+        if self._writer is not None:
+            self._writer.write_message(
+                topic,
+                self._schemas[datatype],
+                msg,
+                log_time=ns,
+                publish_time=ns,
+                sequence=self.counts.get(topic, 0),
+            )
+        for sink in self.sinks:
+            sink(topic, datatype, msg, ns)
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def step(self) -> None:
@@ -513,6 +531,8 @@ class Recorder:
                 job(header)
 
     def _joint_states(self, header: dict) -> None:
+        if not self._watched("/joint_states"):
+            return
         m, d = self.m, self.d
         js = self.src.joints
         q, v = m.jnt_qposadr[js], m.jnt_dofadr[js]
@@ -535,6 +555,8 @@ class Recorder:
         }
 
     def _tf(self, header: dict) -> None:
+        if not self._watched("/tf"):
+            return
         m, d = self.m, self.d
         out = []
         for parent, child in self._edges:
@@ -549,6 +571,8 @@ class Recorder:
     def _wrenches(self, header: dict) -> None:
         s = self.d.sensordata
         for w in self.src.wrenches:
+            if not self._watched(w.topic):
+                continue
             force, torque = s[w.force : w.force + 3], s[w.torque : w.torque + 3]
             if self.noise is not None:
                 force, torque = self.noise.wrench(force, torque)
@@ -561,6 +585,8 @@ class Recorder:
     def _imus(self, header: dict) -> None:
         s = self.d.sensordata
         for i in self.src.imus:
+            if not self._watched(i.topic):
+                continue
             msg = {
                 "header": {"stamp": header["stamp"], "frame_id": self.site_frame(i.site)},
                 "orientation": _xyzw(s[i.orientation : i.orientation + 4]),
@@ -582,8 +608,18 @@ class Recorder:
             self._cams[cam] = Camera(self.m, cam, noise=self.noise)
         return self._cams[cam]
 
+    def _watched(self, prefix: str) -> bool:
+        """Whether messages on the topics under ``prefix`` go anywhere: the file, or a
+        sink that wants them (a sink without ``wants`` wants everything); a live stream
+        nobody watches costs neither renders nor messages."""
+        if self._writer is not None:
+            return True
+        return any(getattr(s, "wants", lambda _: True)(prefix) for s in self.sinks)
+
     def _images(self, header: dict) -> None:
         for role, cam in self.src.cameras.items():
+            if not self._watched(f"/{role}_camera/"):
+                continue  # a render nobody sees
             rgb, depth = self._camera(cam).rgbd(self.d)
             h, w = depth.shape
             head = {"stamp": header["stamp"], "frame_id": self.camera_frame(cam)}
@@ -620,6 +656,8 @@ class Recorder:
             return
         self._closed = True
         self._release()
+        if self._file is None or self.path is None:
+            return
         try:
             self._writer.finish()
             self._file.close()
@@ -635,6 +673,8 @@ class Recorder:
             return
         self._closed = True
         self._release()
+        if self._file is None:
+            return
         self._file.close()
         self._tmp.unlink(missing_ok=True)
 

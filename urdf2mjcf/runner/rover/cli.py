@@ -11,8 +11,12 @@ from typing import Any
 
 import click
 
-from ...cli_types import FiniteFloat
-from ...view.live import PACE_MAX
+from ...cli_types import BoundedInt, FiniteFloat
+from ...limits import SEED_MAX
+from ..executors import EXECUTORS, Kind
+from ..live_options import live_options
+from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
+from .drift import PathLog, check_plot, drift_line, write_plot
 from .roles import RoverError
 from .sim import SETTLE_MAX, RoverSim
 from .tasks import ArmWave, Straight, Task, Turn
@@ -93,19 +97,61 @@ RATE_MAX = 360.0
     "(pip install 'mjcf-forge[ros]')",
 )
 @click.option(
-    "--overwrite", is_flag=True, help="replace a --report or --record file we did not write"
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="draw each rover's odometry against its true path (.png; the sim extra's matplotlib)",
 )
 @click.option(
-    "--view",
+    "--overwrite",
     is_flag=True,
-    help="show the drive live in MuJoCo's browser viewer (its address goes to stderr)",
+    help="replace a --report, --record or --plot file we did not write",
+)
+@live_options("drive", "--view, --console or --foxglove")
+@click.option(
+    "--console",
+    is_flag=True,
+    help="serve a browser console (cameras, IMU, odometry, wheel and arm sliders, "
+    "emergency stop) and its HTTP/JSON API on 127.0.0.1 until Ctrl-C, instead of driving",
 )
 @click.option(
-    "--pace",
-    type=FiniteFloat(0.0, PACE_MAX, low_open=True),
-    default=1.0,
+    "--port",
+    type=BoundedInt(0, 65535),
+    default=0,
     show_default=True,
-    help="with --view: simulated seconds per wall-clock second",
+    help="with --console: the port (0: a free one)",
+)
+@click.option(
+    "--task",
+    type=click.Choice(TASKS),
+    default=None,
+    help="instead of driving: a task of the pair (deliver: the collector brings regolith to "
+    "the printer, which prints a layer; recipes/mira3d-pair*.yaml)",
+)
+@click.option(
+    "--trials",
+    type=BoundedInt(1, 10_000),
+    default=None,
+    help="with --task: seeded trials (seeds S..S+N-1), success rate and its interval",
+)
+@click.option(
+    "--seed",
+    type=BoundedInt(0, SEED_MAX),
+    default=None,
+    help="with --task: the seed (the pile's grains, the collector's start); first of --trials",
+)
+@click.option(
+    "--workers",
+    type=BoundedInt(1, 1024),
+    default=None,
+    help="with --trials: processes of the local pool, or CPUs of a Ray instance started here",
+)
+@click.option(
+    "--executor",
+    type=click.Choice(EXECUTORS),
+    default="local",
+    show_default=True,
+    help="where --trials run: the local process pool, or Ray (pip install 'mjcf-forge[ray]')",
 )
 def rover_drive_command(
     scene: Path,
@@ -118,14 +164,40 @@ def rover_drive_command(
     settle: float,
     report: Path | None,
     record: Path | None,
+    plot: Path | None,
     overwrite: bool,
     view: bool,
     pace: float,
+    console: bool,
+    port: int,
+    foxglove: int | None,
+    foxglove_wait: bool,
+    task: str | None = None,
+    trials: int | None = None,
+    seed: int | None = None,
+    workers: int | None = None,
+    executor: Kind = "local",
 ) -> None:
     """Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, then
     turn in place; print wheel odometry against the true pose."""
     from ... import output as out
+    from .console import check_console_options, serve_console
 
+    if check_console_options(click.get_current_context(), console):
+        serve_console(scene, names, settle, pace, port)
+        return
+    check_task_options(click.get_current_context(), task, trials, seed)
+    if task is not None:
+        run = TaskRun(scene, task, trials or 0, seed, workers, executor)
+        task_command(run, report, overwrite)
+        return
+
+    if foxglove_wait and foxglove is None:
+        raise click.UsageError("--foxglove-wait needs --foxglove")
+    if foxglove is not None:
+        from ...extras import require
+
+        require("live", "rover-drive --foxglove")
     if report is not None:
         out.check_file(report, overwrite, "rover-drive")  # before driving, not after
     if record is not None:
@@ -133,19 +205,37 @@ def rover_drive_command(
 
         check_recording(record, overwrite, "rover-drive")
         out.check_not_dangling(record, overwrite)
+    if plot is not None:
+        check_plot(plot, overwrite, report)
+    logs: list[PathLog] = []
     with contextlib.ExitStack() as files:
         # All or nothing: both files are made before driving (a folder we cannot write in
         # fails first), and renamed into place together at the end.
         report_to = files.enter_context(out.reserved_file(report)) if report else None
         record_to = files.enter_context(out.reserved_file(record)) if record else None
+        plot_to = files.enter_context(out.reserved_file(plot)) if plot else None
         view_pace = pace if view else None
         results, warnings = _drive(
-            scene, names, distance, speed, turn, rate, arm, settle, record, record_to, view_pace
+            scene,
+            names,
+            distance,
+            speed,
+            turn,
+            rate,
+            arm,
+            settle,
+            record,
+            record_to,
+            view_pace,
+            paths=logs if plot else None,
+            stream=(foxglove, pace, foxglove_wait) if foxglove is not None else None,
         )
+        if plot_to is not None:
+            write_plot(logs[0], results, plot_to.tmp)
         if report_to is not None:
             data = {"scene": str(scene), "tasks": results, "warnings": warnings}
             report_to.write(out.json_bytes(data, "rover-drive"))
-        for done in (record_to, report_to):
+        for done in (record_to, plot_to, report_to):
             if done is not None:
                 done.commit()
     if warnings:
@@ -164,30 +254,55 @@ def _drive(
     record: Path | None,
     record_to: Any,
     pace: float | None = None,
+    paths: list[PathLog] | None = None,
+    stream: tuple[int, float, bool] | None = None,
 ) -> tuple[list[dict], dict[str, int]]:
     """Drive, print each task's summary; the results and MuJoCo's warnings. The
     recording of ``record`` goes to ``record_to`` (its reserved file); with ``pace``,
-    the drive is shown live at that pace (it only reads the state)."""
-    recorder = live = None
+    the drive is shown live at that pace (it only reads the state); ``paths`` gets a
+    :class:`PathLog` of the drive; ``stream`` (port, pace, wait): the recording's
+    messages are served to Foxglove while it drives."""
+    recorder = live = foxglove = None
     try:
         sim = RoverSim(scene)
         chosen = list(names) or list(sim.rovers)
         for n in chosen:
             sim.rover(n)
-        if record is not None:
+        if stream is not None:
+            from ..foxglove_live import FoxgloveStream
+
+            foxglove = FoxgloveStream(sim.d, stream[0], pace=stream[1], name="rover-drive")
+        if record is not None or foxglove is not None:
             from ..record import Recorder, rover_sources
 
             sources = rover_sources(sim.m, sim.manifest, sim.rovers)
-            to = record_to.tmp
-            recorder = Recorder(sim.m, sim.d, sources, to, generator="rover-drive")
+            to = record_to.tmp if record is not None else None
+            recorder = Recorder(
+                sim.m,
+                sim.d,
+                sources,
+                to,
+                generator="rover-drive",
+                sinks=[foxglove] if foxglove is not None else (),
+            )
             recorder.step()  # the start
             sim.on_step.append(recorder.step)
+        if foxglove is not None and stream is not None:
+            # Once every topic has its channel: a client sees them all when it connects.
+            click.echo(f"streaming to Foxglove at {foxglove.address}", err=True)
+            if stream[2]:
+                click.echo("waiting for a Foxglove client to subscribe", err=True)
+            foxglove.start(wait=stream[2])
+            sim.on_step.append(foxglove.step)
         if pace is not None:
             from ...view.live import LiveView
 
             live = LiveView(sim.m, sim.d, pace=pace, what=f"rover-drive {scene}")
             sim.on_step.append(live.step)
         sim.settle(settle)
+        if paths is not None:  # from where the odometry starts: the end of the settle
+            paths.append(PathLog(sim, sim.rovers))
+            sim.on_step.append(paths[-1].step)
         results: list[dict] = []
         plans: list[tuple[str, Callable[[], Task]]] = []
         if distance:
@@ -198,9 +313,10 @@ def _drive(
             waves = {n: ArmWave() for n in chosen} if arm else None
             for r in sim.run({n: make() for n in chosen}, arm=waves).values():
                 click.echo(r.summary())
+                click.echo(drift_line(r.rover, r.task, r.drift))
                 results.append(asdict(r))
         warnings = sim.warnings()
-        if recorder is not None:
+        if recorder is not None and record is not None:
             recorder.close()
             click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")
     except RoverError as exc:
@@ -210,4 +326,6 @@ def _drive(
             recorder.abort()  # after close(): nothing to do; else nothing is left behind
         if live is not None:
             live.close()
+        if foxglove is not None:
+            foxglove.close()
     return results, warnings

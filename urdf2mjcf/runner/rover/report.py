@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from .drift import DriftStart
 from .odometry import true_pose, wrap_angle
 from .roles import Rover
 from .state import SimState
@@ -47,6 +48,8 @@ class TaskReport:
     tipped: bool
     arm_error: float
     """Largest arm tracking error while the task ran (rad)."""
+    drift: dict = field(default_factory=dict)
+    """The odometry's drift this task added against the truth (``drift.DriftStart``)."""
 
     def summary(self) -> str:
         unit = "deg" if self.task == "turn" else "m"
@@ -70,6 +73,7 @@ class _Track:
         self.rover = rover
         odo = sim.odometry[rover.name]
         self.odo0 = (odo.distance, odo.turned, odo.turned_imu)
+        self.drift = DriftStart(sim, rover)
         self.start = sim.d.xpos[rover.base].copy()
         self.last = self.start.copy()
         self.last_yaw = true_pose(sim.m, sim.d, rover).yaw
@@ -146,4 +150,5 @@ class _Track:
             min_pitch=math.degrees(self.min_pitch),
             tipped=self.tilt > math.radians(45),
             arm_error=self.arm,
+            drift=self.drift.figures(sim, r, self.path, self.turned),
         )

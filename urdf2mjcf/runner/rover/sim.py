@@ -104,6 +104,14 @@ class RoverSim:
         self.d.ctrl[rover.left] = np.clip(left / scale, lo, hi)
         self.d.ctrl[rover.right] = np.clip(right / scale, lo, hi)
 
+    def wheels(self, rover: Rover, left: float, right: float) -> None:
+        """Wheel velocity commands of each side (rad/s), clipped to the servos' range;
+        ends a brake."""
+        self._hold.pop(rover.name, None)
+        lo, hi = rover.wheel_ctrl
+        self.d.ctrl[rover.left] = np.clip(left, lo, hi)
+        self.d.ctrl[rover.right] = np.clip(right, lo, hi)
+
     def brake(self, rover: Rover) -> None:
         """Hold the wheels where they are: a position loop through the velocity servos
         (``HOLD_GAIN`` rad/s per rad), as a motor controller holds a rover on a slope; a

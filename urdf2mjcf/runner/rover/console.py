@@ -1,0 +1,316 @@
+"""``rover-drive --console``: a browser console and its HTTP/JSON API for a running
+simulation of a facility's rovers (docs/mira3d.md, "Console").
+
+The API (everything the page does goes through it)::
+
+    GET  /                         the page
+    GET  /state                    time, and per rover: true pose, odometry, IMU, wheels, arm, estop
+    GET  /rovers                   per rover: cameras, arm joints with target ranges, wheel range
+    GET  /camera/NAME/CAMERA.png   the camera's image at the latest state (header X-Sim-Time)
+    POST /command                  {"rover": NAME, "wheels": {"left": rad/s, "right": rad/s},
+                                    "arm": {JOINT: rad}} (wheels and/or arm)
+    POST /estop, POST /release     {"rover": NAME}, or no body: every rover
+
+A refused request gets a 4xx status and ``{"error": "..."}`` on one line; the
+simulation runs on. There is no authentication: the server listens on the loopback
+interface only, answers only requests addressed to it by that name (a page of
+another site that renames itself to 127.0.0.1 gets 403) and refuses commands posted
+by a page of another origin.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import threading
+import urllib.parse
+from collections.abc import Callable
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Any
+
+import click
+from click.core import ParameterSource
+
+from .console_camera import Cameras, CameraUnavailable, image_sizes
+from .console_page import PAGE
+from .console_sim import CommandError, ConsoleSim
+from .roles import RoverError
+from .sim import RoverSim
+
+HOST = "127.0.0.1"
+BODY_MAX = 16 * 1024
+"""Bytes of a request body, at most."""
+DRAIN_MAX = 1024 * 1024
+"""Bytes of a too-large body read and dropped so the client hears the 413."""
+REQUEST_TIMEOUT_S = 10.0
+"""A client that sends nothing for this long is dropped."""
+
+
+class ApiError(Exception):
+    def __init__(self, message: str, status: int = 400):
+        super().__init__(message)
+        self.status = status
+
+
+def _number(value: Any, where: str) -> float:
+    # bool is an int in Python, never a speed
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ApiError(f"{where}: {json.dumps(value)[:40]} is not a finite number")
+    return float(value)
+
+
+def _object(value: Any, where: str, keys: tuple[str, ...]) -> dict:
+    if not isinstance(value, dict):
+        raise ApiError(f"{where}: expected a JSON object")
+    extra = [k for k in value if k not in keys]
+    if extra:
+        raise ApiError(f"{where}: unknown key {extra[0]!r}; keys: {', '.join(keys)}")
+    return value
+
+
+def _no_constants(name: str) -> Any:
+    raise ApiError(f"{name} is not a number")
+
+
+class Console:
+    """The server for ``sim`` on ``port`` (0: a free one) of the loopback interface;
+    :meth:`start` starts the simulation and the server, :meth:`close` stops both."""
+
+    def __init__(self, sim: ConsoleSim, port: int = 0):
+        self.sim = sim
+        m = sim.sim.m
+        self.server = _Server((HOST, port), _Handler)
+        self.server.console = self  # type: ignore[attr-defined]
+        self.port = int(self.server.server_address[1])
+        self.url = f"http://{HOST}:{self.port}/"
+        self.hosts = {f"{HOST}:{self.port}", f"localhost:{self.port}"}
+        self.cameras = Cameras(m, sim.snapshot, image_sizes(m, sim.sim.manifest))
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        self.sim.start()
+        self._thread = threading.Thread(
+            target=self.server.serve_forever, name="rover-console-http", daemon=True
+        )
+        self._thread.start()
+
+    def close(self) -> None:
+        if self._thread is not None:
+            self.server.shutdown()
+        self.server.server_close()
+        self.sim.stop()
+        self.cameras.close()
+
+    def __enter__(self) -> Console:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- the API, independent of HTTP ------------------------------------------------
+
+    def get(self, path: str) -> tuple[str, bytes, dict[str, str]]:
+        """(content type, body, extra headers) of ``GET path``."""
+        if path in ("/", "/index.html"):
+            return "text/html; charset=utf-8", PAGE.encode(), {}
+        if path == "/state":
+            return _json(self._running(self.sim.state()))
+        if path == "/rovers":
+            return _json(self.sim.info())
+        parts = path.split("/")
+        if len(parts) == 4 and parts[1] == "camera" and parts[3].endswith(".png"):
+            name, camera = parts[2], parts[3][: -len(".png")]
+            cams = self.sim.driven(name).cameras
+            if camera not in cams:
+                raise ApiError(f"{name}: no camera {camera!r}; cameras: {', '.join(cams)}", 404)
+            try:
+                t, png = self.cameras.png(cams[camera])
+            except CameraUnavailable as exc:
+                raise ApiError(str(exc), 503) from None
+            return "image/png", png, {"X-Sim-Time": repr(t)}
+        raise ApiError(f"no such path: GET {path}", 404)
+
+    def post(self, path: str, body: Any) -> Any:
+        """The answer to ``POST path`` with the JSON ``body`` (None: no body)."""
+        if path == "/command":
+            return self._command(body)
+        if path in ("/estop", "/release"):
+            names = None
+            if body is not None:
+                rover = _object(body, path, ("rover",)).get("rover")
+                names = None if rover is None else [rover]
+            return self.sim.estop(names) if path == "/estop" else self.sim.release(names)
+        raise ApiError(f"no such path: POST {path}", 404)
+
+    def _command(self, body: Any) -> Any:
+        body = _object(body, "/command", ("rover", "wheels", "arm"))
+        name = body.get("rover")
+        if name is None and len(self.sim.rovers) == 1:
+            name = next(iter(self.sim.rovers))
+        self.sim.driven(name)
+        wheels = None
+        if "wheels" in body:
+            w = _object(body["wheels"], "wheels", ("left", "right"))
+            if set(w) != {"left", "right"}:
+                raise ApiError("wheels: give both 'left' and 'right' (rad/s)")
+            wheels = (_number(w["left"], "wheels.left"), _number(w["right"], "wheels.right"))
+        arm = None
+        if "arm" in body:
+            a = body["arm"]
+            if not isinstance(a, dict):
+                raise ApiError("arm: expected a JSON object {JOINT: rad}")
+            arm = {str(j): _number(v, f"arm.{j}") for j, v in a.items()}
+        if wheels is None and arm is None:
+            raise ApiError("/command: give 'wheels' and/or 'arm'")
+        return self.sim.command(name, wheels, arm)
+
+    def _running(self, answer: Any) -> Any:
+        if self.sim.error is not None:
+            raise ApiError(f"the simulation stopped: {self.sim.error!r}", 500)
+        return answer
+
+
+def _json(obj: Any) -> tuple[str, bytes, dict[str, str]]:
+    return "application/json", json.dumps(obj, allow_nan=False).encode() + b"\n", {}
+
+
+class _Server(ThreadingHTTPServer):
+    daemon_threads = True
+    request_queue_size = 64  # a page asks for every camera and the state at once
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server_version = "rover-console"
+    timeout = REQUEST_TIMEOUT_S
+
+    @property
+    def console(self) -> Console:
+        return self.server.console  # type: ignore[attr-defined,no-any-return]
+
+    def log_message(self, format: str, *args: Any) -> None:
+        pass  # quiet: the command's output is its address line
+
+    def _send(self, status: int, kind: str, body: bytes, headers: dict[str, str]) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", kind)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        for k, v in headers.items():
+            self.send_header(k, v)
+        self.end_headers()
+        self.wfile.write(body)
+
+    def _error(self, status: int, message: str) -> None:
+        self._send(status, *_json({"error": message}))
+
+    def _handle(self, answer: Callable[[str], tuple[str, bytes, dict[str, str]]]) -> None:
+        try:
+            host = self.headers.get("Host")
+            if host is not None and host not in self.console.hosts:
+                raise ApiError(f"not served to host {host[:80]!r}", 403)
+            path = urllib.parse.unquote(urllib.parse.urlsplit(self.path).path)
+            status, (kind, body, headers) = 200, answer(path)
+        except (ApiError, CommandError) as exc:
+            status, (kind, body, headers) = exc.status, _json({"error": str(exc)})
+        except Exception as exc:  # noqa: BLE001 - a bug answers 500, the server goes on
+            status, (kind, body, headers) = 500, _json({"error": f"internal error: {exc!r}"})
+        try:
+            self._send(status, kind, body, headers)
+        except ConnectionError:  # the client left (a closed page): nothing to tell it
+            self.close_connection = True
+
+    def do_GET(self) -> None:  # noqa: N802 - http.server's name
+        self._handle(self.console.get)
+
+    def do_POST(self) -> None:  # noqa: N802
+        self._handle(lambda path: _json(self.console.post(path, self._body())))
+
+    def _not_allowed(self) -> None:
+        self._error(405, f"method {self.command} not allowed")
+
+    do_PUT = do_DELETE = do_PATCH = do_HEAD = do_OPTIONS = _not_allowed  # noqa: N815
+
+    def _body(self) -> Any:
+        origin = self.headers.get("Origin")
+        if origin is not None and urllib.parse.urlsplit(origin).netloc not in self.console.hosts:
+            raise ApiError(f"commands from origin {origin[:80]!r} are refused", 403)
+        if self.headers.get("Transfer-Encoding"):
+            raise ApiError("send a Content-Length, not a chunked body", 411)
+        try:
+            size = int(self.headers.get("Content-Length") or 0)
+        except ValueError:
+            raise ApiError("Content-Length is not a number") from None
+        if size < 0:
+            raise ApiError("Content-Length is negative")
+        if size > BODY_MAX:
+            if size <= DRAIN_MAX:  # read it, so the client gets to read our answer
+                self.rfile.read(size)
+            self.close_connection = True
+            raise ApiError(f"body of {size} bytes is over {BODY_MAX}", 413)
+        raw = self.rfile.read(size) if size else b""
+        if not raw.strip():
+            return None
+        try:
+            return json.loads(raw, parse_constant=_no_constants)
+        except (ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
+            raise ApiError(f"body is not JSON: {exc}") from None
+
+
+def run(sim: ConsoleSim, port: int, echo: Callable[[str], None]) -> None:
+    """Serve the console for ``sim`` until Ctrl-C or SIGTERM (then return normally)."""
+    stop = threading.Event()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with Console(sim, port) as console:
+            echo(f"console at {console.url} (pace {sim.pace:g}; Ctrl-C to stop)")
+            while not stop.wait(0.2):
+                if sim.error is not None:
+                    raise RuntimeError(f"the simulation stopped: {sim.error!r}")
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+CONSOLE_OPTIONS = {"scene", "names", "settle", "pace", "console", "port", "debug"}
+"""rover-drive's parameters that mean something with --console; any other is refused."""
+
+
+def check_console_options(ctx: click.Context, console: bool) -> bool:
+    """Whether rover-drive serves the console; a drive option given with ``--console``,
+    or ``--port`` without it, is a usage error."""
+    given = [
+        p
+        for p in ctx.command.params
+        if p.name and ctx.get_parameter_source(p.name) == ParameterSource.COMMANDLINE
+    ]
+    if not console:
+        if any(p.name == "port" for p in given):
+            raise click.UsageError("--port is for --console")
+        return False
+    other = [p for p in given if p.name not in CONSOLE_OPTIONS]
+    if other:
+        raise click.UsageError(f"--console runs no drive: {other[0].opts[0]} is not for it")
+    return True
+
+
+def serve_console(
+    scene: Path, names: tuple[str, ...], settle: float, pace: float, port: int
+) -> None:
+    """``rover-drive SCENE --console``: the rovers ``names`` (default: all) of the facility,
+    settled for ``settle`` s, served until Ctrl-C or SIGTERM."""
+    try:
+        sim = RoverSim(scene)
+        for n in names:
+            sim.rover(n)
+        sim.settle(settle)
+    except RoverError as exc:
+        raise click.ClickException(str(exc)) from None
+    try:
+        run(ConsoleSim(sim, list(names) or None, pace), port, click.echo)
+    except OSError as exc:
+        if exc.filename is None and exc.strerror:  # binding the port
+            raise click.ClickException(f"--port {port}: {exc.strerror}") from None
+        raise
