@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import struct
 import subprocess
 import sys
@@ -116,28 +117,55 @@ class Setup:
         return {k: v for k, v in snap.items() if not k.startswith(skip)}
 
 
+_LAUNCHER = """
+import os, resource, signal, sys
+limit, fd = int(sys.argv[1]), int(sys.argv[2])
+pid = os.fork()
+if pid == 0:
+    os.close(fd)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    os.execv(sys.argv[3], sys.argv[3:])
+_, status, usage = os.wait4(pid, 0)
+os.write(fd, str(usage.ru_maxrss).encode())
+if os.WIFSIGNALED(status):
+    signal.signal(os.WTERMSIG(status), signal.SIG_DFL)
+    os.kill(os.getpid(), os.WTERMSIG(status))
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+"""Runs ``argv[3:]`` under the probe's memory limit and writes its peak resident memory
+(KiB) to the descriptor ``argv[2]``; exits as it did."""
+
+
 def run_measured(command: str, *args: str, cwd: Path) -> tuple[attack.Result, int]:
     """:func:`attack.run`'s probe (same limits), and the peak resident memory in bytes of
     that process alone (``wait4``'s rusage)."""
     code = f"from urdf2mjcf.cli import {attack.ENTRY[command]}; {attack.ENTRY[command]}()"
+    peak_r, peak_w = os.pipe()
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         start = time.monotonic()
+        # Through a small launcher: Linux counts a forked child's peak from the address
+        # space it was forked from (the test process, large late in a suite), so the
+        # probe is forked from a process that is small.
         proc = subprocess.Popen(
-            [sys.executable, "-c", code, *args],
+            [sys.executable, "-c", _LAUNCHER, str(attack.MEMORY_LIMIT), str(peak_w)]
+            + [sys.executable, "-c", code, *args],
             stdout=out,
             stderr=err,
             stdin=subprocess.DEVNULL,
             cwd=cwd,
-            preexec_fn=attack._limit_memory,
+            pass_fds=(peak_w,),
+            start_new_session=True,
         )
-        timer = threading.Timer(TIMEOUT, proc.kill)
+        os.close(peak_w)
+        timer = threading.Timer(TIMEOUT, lambda: os.killpg(proc.pid, signal.SIGKILL))
         timer.start()
         try:
-            _, status, usage = os.wait4(proc.pid, 0)
+            proc.wait()
         finally:
             timer.cancel()
+        with os.fdopen(peak_r, "rb") as peak:
+            maxrss = int(peak.read() or b"0")
         seconds = time.monotonic() - start
-        proc.returncode = os.waitstatus_to_exitcode(status)
         assert seconds < TIMEOUT, f"{command} {args} ran past {TIMEOUT} s (killed)"
         out.seek(0)
         err.seek(0)
@@ -147,7 +175,7 @@ def run_measured(command: str, *args: str, cwd: Path) -> tuple[attack.Result, in
             err.read().decode(errors="replace"),
             seconds,
         )
-    return result, usage.ru_maxrss * 1024
+    return result, maxrss * 1024
 
 
 @pytest.fixture(scope="module")
