@@ -17,7 +17,7 @@ runtime replays and rebuilds it without the facility root's recipes.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,7 +27,8 @@ import yaml
 from .. import api, bundle, untrusted
 from .. import output as out
 from ..errors import InputError
-from . import fiducials, fold
+from ..passes.emit import EmitResult
+from . import attach, fiducials, fold
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
 from .recipe import Component, Pose2D, Recipe, read_yaml
@@ -80,11 +81,13 @@ def _convert_options(
     source: Path | None = None,
     args: Mapping[str, str] | None = None,
     prefix: str | None = None,
+    elsewhere: Collection[str] = (),
 ) -> dict:
     """:func:`api.convert`'s options for ``source``: the facility (``prefix`` None, with
-    its xacro ``args``) or a component compiled on its own (with its ``prefix``). The
-    recipe's ``collision.links`` are the facility's link names: the facility must have
-    each (else an error naming the recipe and the key); a component takes those it has
+    its xacro ``args``; ``elsewhere``: the links of the components attached to it) or a
+    component compiled on its own (with its ``prefix``). The recipe's
+    ``collision.links`` are the facility's link names: the facility must have each
+    (else an error naming the recipe and the key); a component takes those it has
     (:meth:`Recipe.link_collision`)."""
     options: dict[str, Any] = {
         "package_paths": [root / d for d in PACKAGE_DIRS],
@@ -109,7 +112,7 @@ def _convert_options(
         links = {link.name for link in robot.links}
         if prefix is None:
             for name in recipe.collision["links"]:
-                if name not in links:
+                if name not in links and name not in elsewhere:
                     raise InputError(
                         "no such link in the facility",
                         file=recipe.path or source,
@@ -148,7 +151,7 @@ def build_facility(
             element="xacro",
         )
     table = recipe.components
-    placements = {n: p for n, p in recipe.placements.items() if recipe.enabled(n)}
+    placements = {n: p for n, p in recipe.placed().items() if recipe.enabled(n)}
     ranges = {n: recipe.jitter_ranges(n) for n in placements}
     free = {n for n in placements if table[n].free}
     moved, offsets = jittered(placements, ranges, free, seed)
@@ -160,26 +163,65 @@ def build_facility(
         clear_of = [p.xyz[:2] for p in moved.values()]
         rocks = scatter(recipe.rocks, rock_seed, clear_of, recipe.path)
         args["rocks"] = rocks_arg(rocks)
-    options = _convert_options(
-        root, recipe, workers=workers, cache_dir=cache_dir, progress=progress, source=top, args=args
-    )
 
     present = [n for n in table if n in moved]
+    attached = [n for n in present if table[n].attach is not None]
     # Passes on the scene in memory: what is written is what validation stepped.
     folding = fold.Fold() if fold_fixtures else None
     tagging = fiducials.Tags(
-        [(n, table[n].prefix, tag) for n in present for tag in table[n].fiducials],
+        [
+            (n, table[n].prefix, tag)
+            for n in present
+            if n not in attached
+            for tag in table[n].fiducials
+        ],
         recipe=recipe.path,
     )
-    passes = [step for step in (folding, tagging) if step is not None]
 
     with out.staged_folder(output) as stage:
+        built: dict[str, Path] = {}
+        parts: list[attach.Part] = []
+        placed: list = []
+        links: set[str] = set()
+        for name in attached:  # each compiled once: the file in components/ is what is attached
+            file = _component_file(table, present, name)
+            part, tags, names = _attached_component(
+                root,
+                recipe,
+                name,
+                moved[name],
+                stage / file if components else None,
+                workers=workers,
+                cache_dir=cache_dir,
+                progress=progress,
+            )
+            parts.append(part)
+            placed += tags
+            links |= names
+            if components:
+                built[file.parts[1]] = file
+        options = _convert_options(
+            root,
+            recipe,
+            workers=workers,
+            cache_dir=cache_dir,
+            progress=progress,
+            source=top,
+            args=args,
+            elsewhere=links,
+        )
+        if all(c.attach is not None for c in table.values() if c.roles is not None):
+            options["actuator_config"] = None  # every robot brings its own actuators
+        joined = attach.Attach(parts, recipe=recipe.path)
+        passes = [step for step in (joined, folding, tagging) if step is not None]
         report = api.convert(
             top, stage / "scene.xml", args=args, scene=False, model_passes=passes, **options
         )
-        built: dict[str, Path] = {}
+        placed += tagging.placed
         if components:
-            assets = sorted({table[n].asset: table[n] for n in present}.items())
+            assets = sorted(
+                {table[n].asset: table[n] for n in present if n not in attached}.items()
+            )
             for asset, comp in assets:
                 src = data_path(root, recipe.path, comp.standalone)
                 if not src.is_file():
@@ -202,7 +244,6 @@ def build_facility(
         roles = _roles(root, recipe.path, table, present)
         compiled = report.compiled  # validation's model of scene.xml as written
         assert compiled is not None  # the facility is always validated
-        placed = tagging.placed
         folded = folding.folded if folding is not None else None
         demo = _write_copies(stage, recipe, root)
         data = manifest(
@@ -234,6 +275,71 @@ def build_facility(
     )
 
 
+def _component_file(table: Mapping[str, Component], present: list[str], name: str) -> Path:
+    """``components/<asset>/<asset>.xml``, or ``components/<name>/<asset>.xml`` where
+    the facility holds the asset more than once: each file is the model attached."""
+    asset = table[name].asset
+    shared = sum(table[n].asset == asset for n in present) > 1
+    return Path("components") / (name if shared else asset) / f"{asset}.xml"
+
+
+class _Keep:
+    """The last pass of a component's conversion: keeps the document it writes."""
+
+    result: EmitResult | None = None
+
+    def __call__(self, result: EmitResult) -> EmitResult:
+        self.result = result
+        return result
+
+
+def _attached_component(
+    root: Path,
+    recipe: Recipe,
+    name: str,
+    pose: Pose2D,
+    target: Path | None,
+    *,
+    workers: int,
+    cache_dir: Path | None,
+    progress: Callable[[int, int, str], None] | None,
+) -> tuple[attach.Part, list, set[str]]:
+    """Compile component ``name`` on its own with its ``attach`` arguments and its tags,
+    into ``target`` (validated, as every conversion) or, None, in memory only; the
+    part to attach at ``pose``, the tags placed and its link names."""
+    comp = recipe.components[name]
+    src = data_path(root, recipe.path, comp.standalone)
+    if not src.is_file():
+        raise InputError(
+            f"standalone description '{comp.standalone}' does not exist",
+            file=recipe.path or src,
+            element=f"components.{name}.standalone",
+        )
+    args = comp.attach_args(recipe.flags)
+    options = _convert_options(
+        root,
+        recipe,
+        workers=workers,
+        cache_dir=cache_dir,
+        progress=progress,
+        source=src,
+        args=args,
+        prefix=comp.prefix,
+    )
+    if comp.roles is None:  # the actuator file belongs to the robot
+        options["actuator_config"] = None
+    tags = fiducials.Tags([(name, comp.prefix, tag) for tag in comp.fiducials], recipe=recipe.path)
+    keep = _Keep()
+    if target is not None:
+        model = api.convert(src, target, args=args, model_passes=[tags, keep], **options).model
+    else:
+        model, result = api.build(src, api.make_options(args=args, **options))
+        keep(tags(result))
+    assert keep.result is not None and model is not None
+    part = attach.Part(name, keep.result, pose.xyz, attach.yaw_quat(pose.yaw))
+    return part, tags.placed, {link.name for link in model.robot.links}
+
+
 RECIPE_HEADER = (
     "# The recipe this facility was built from, as built: --set edits applied, the\n"
     "# component table inline. Paths resolve beside this file, else under the facility\n"
@@ -258,6 +364,10 @@ def _component_data(comp: Component) -> dict:
             data[key] = getattr(comp, key)
     if comp.mechanisms is not None:
         data["mechanisms"] = comp.mechanisms
+    if comp.attach is not None:
+        data["attach"] = dict(comp.attach)
+    if comp.pose is not None:
+        data["pose"] = {"xyz": list(comp.pose.xyz), "yaw": comp.pose.yaw}
     if comp.fiducials:
         data["fiducials"] = [
             {"id": f.id, "link": f.link, "xyz": list(f.xyz), "rpy": list(f.rpy), "size": f.size}

@@ -22,10 +22,13 @@ A recipe is a YAML file (see ``recipes/`` and docs/facility.md)::
       links: {gripper_link: hull}     # per link, named as in the facility
 
 The component table maps each component's name to ``{asset, standalone, flag,
-prefix, roles, free}`` (see :class:`Component`); the name is also the stem of its
-pose arguments in the xacro (``shelf_x``, ``shelf_y``, ``shelf_z``, ``shelf_yaw``)
-and its key under ``placements`` and ``jitter``. The builder knows no component by
-name: everything it does with one comes from this table.
+prefix, roles, free, attach}`` (see :class:`Component`); the name is also the stem of
+its pose arguments in the xacro (``shelf_x``, ``shelf_y``, ``shelf_z``, ``shelf_yaw``)
+and its key under ``placements`` and ``jitter``. A component with ``attach`` (its
+standalone xacro's arguments; ``$NAME`` is the recipe flag NAME) is compiled once on
+its own and attached into the top-level xacro's world at its placement
+(``urdf2mjcf.facility.attach``); one without is part of the top-level xacro. The
+builder knows no component by name: everything it does with one comes from this table.
 
 A relative path names the user's own file beside the recipe if there is one, else
 ours under the facility root (the folder holding ``facility/`` and ``recipes/``; see
@@ -38,6 +41,8 @@ valid ones; every error names the file, the key and its line.
 from __future__ import annotations
 
 import copy
+import math
+import re
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,8 +72,11 @@ from .values import (
 )
 
 COMPONENT_KEYS = (
-    "asset", "standalone", "flag", "prefix", "roles", "free", "fiducials", "mechanisms"
+    "asset", "standalone", "flag", "prefix", "roles", "free", "fiducials", "mechanisms",
+    "attach", "pose",
 )
+ATTACH_ARGS_MAX = 64
+"""Arguments of one attached component's standalone xacro."""
 TOP_KEYS = (
     "components",
     "name",
@@ -129,6 +137,25 @@ class Component:
     prefix; facility.json lists them prefixed (``manifest.py``)."""
     fiducials: tuple[Fiducial, ...] = ()
     """AprilTags on its links (``urdf2mjcf.facility.fiducials``), ids unique in the table."""
+    attach: Mapping[str, Any] | None = None
+    """The xacro arguments its standalone description is compiled with, when it is
+    attached into the world at its placement (``urdf2mjcf.facility.attach``): names to
+    values, ``$NAME`` the recipe flag NAME. None: the top-level xacro holds it."""
+    pose: Pose2D | None = None
+    """Where an attached component stands when the recipe has no placement for it (as a
+    xacro argument's default)."""
+
+    def attach_args(self, flags: Mapping[str, Any]) -> dict[str, str]:
+        """:attr:`attach` as xacro arguments, flags substituted. A flag the recipe does not
+        set leaves its argument out: the standalone's default, as a xacro argument's."""
+        out = {}
+        for name, value in (self.attach or {}).items():
+            if isinstance(value, str) and value.startswith("$"):
+                if value[1:] not in flags:
+                    continue
+                value = flags[value[1:]]
+            out[name] = ("true" if value else "false") if isinstance(value, bool) else str(value)
+        return out
 
 
 Ranges = Mapping[str, float] | None
@@ -191,7 +218,16 @@ class Recipe:
 
     def places(self, name: str) -> bool:
         """Whether the facility will hold the component: placed and enabled."""
-        return name in self.placements and self.enabled(name)
+        return name in self.placed() and self.enabled(name)
+
+    def placed(self) -> dict[str, Pose2D]:
+        """The placements, with the table's default pose of an attached component the
+        recipe does not place."""
+        out = dict(self.placements)
+        for name, comp in self.components.items():
+            if name not in out and comp.attach is not None and comp.pose is not None:
+                out[name] = comp.pose
+        return out
 
 
 def _names(keys: Any) -> str:
@@ -330,12 +366,40 @@ def _component(spec: Any, src: Source, where: str) -> Component:
                 raise src.fail(f"{where}.{key}", f"'{value}' is not true or false")
         elif key == "fiducials":
             value = parse_fiducials(value, src, f"{where}.{key}")
+        elif key == "attach":
+            value = _attach(value, src, f"{where}.{key}")
+        elif key == "pose":
+            value = _pose(value, src, f"{where}.{key}")
         elif not (
             isinstance(value, str) or (key in ("flag", "roles", "mechanisms") and value is None)
         ):
             raise src.fail(f"{where}.{key}", f"'{value}' is not text")
         out[key] = value
     return Component(**out)
+
+
+_ARG_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+
+
+def _attach(value: Any, src: Source, where: str) -> dict[str, Any]:
+    """A component's ``attach``: xacro argument names to one value each (text, a
+    number, true or false; ``$NAME`` the recipe's flag NAME)."""
+    if value is None:
+        value = {}
+    args = src.mapping(value, where)
+    if len(args) > ATTACH_ARGS_MAX:
+        raise src.fail(where, f"at most {ATTACH_ARGS_MAX} arguments")
+    for name, arg in args.items():
+        if not isinstance(name, str) or not _ARG_NAME.fullmatch(name):
+            raise src.fail(where, f"'{excerpt(str(name), 40)}' is not a xacro argument name")
+        if not isinstance(arg, (str, bool, int, float)):
+            message = "an argument is one value: text, a number, true or false"
+            raise src.fail(f"{where}.{name}", message)
+        if isinstance(arg, float) and not math.isfinite(arg):
+            raise src.fail(f"{where}.{name}", f"'{arg}' is not a finite number")
+        if isinstance(arg, str) and len(arg) > SET_VALUE_MAX:
+            raise src.fail(f"{where}.{name}", f"longer than {SET_VALUE_MAX} characters")
+    return dict(args)
 
 
 def _components(data: Mapping, src: Source, root: Path | None) -> dict[str, Component]:
