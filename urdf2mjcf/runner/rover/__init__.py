@@ -30,33 +30,41 @@ Command line (``rover_drive_command``)::
 
     rover-drive build/mira3d-floor --distance 10 --speed 0.5 --report r.json
     rover-drive build/mira3d-pair --rover collector --distance 5 --turn 90 --arm
+    rover-drive build/mira3d-pair --plan plan.yaml
 
 The package, one module per job: ``roles`` (the rovers of a facility as MuJoCo ids),
 ``odometry`` (dead reckoning and the true pose), ``tasks`` (the closed loops and the
-arm motion), ``sim`` (stepping, wheel commands, the brake), ``report`` (what a task
-did), ``state`` (what tasks and reports read of ``sim``) and ``cli`` (``rover-drive``).
+arm motion, and ``TASKS``: their registered kinds), ``plan_file`` (a task plan file),
+``sim`` (stepping, wheel commands, the brake), ``report`` (what a task did), ``state``
+(what tasks and reports read of ``sim``) and ``cli`` (``rover-drive``).
 """
 
 from .cli import rover_drive_command
 from .odometry import Odometry, Pose, true_pose
+from .plan_file import Plan, check_plan, read_plan
 from .report import TaskReport
 from .roles import Rover, RoverError, find_rovers
 from .sim import RoverSim
-from .tasks import ArmWave, Hold, Straight, Task, Turn
+from .tasks import TASKS, ArmWave, Hold, Straight, Task, TaskKind, Turn
 
 __all__ = [
+    "TASKS",
     "ArmWave",
     "Hold",
     "Odometry",
+    "Plan",
     "Pose",
     "Rover",
     "RoverError",
     "RoverSim",
     "Straight",
     "Task",
+    "TaskKind",
     "TaskReport",
     "Turn",
+    "check_plan",
     "find_rovers",
+    "read_plan",
     "rover_drive_command",
     "true_pose",
 ]

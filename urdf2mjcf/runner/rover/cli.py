@@ -1,10 +1,9 @@
-"""``rover-drive``: drive the rovers of a built facility straight, then turn in place."""
+"""``rover-drive``: drive the rovers of a built facility straight, then turn in place, or
+run a task plan (``--plan``); both make their tasks through ``tasks.TASKS``."""
 
 from __future__ import annotations
 
 import contextlib
-import math
-from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -17,19 +16,13 @@ from ..executors import EXECUTORS, Kind
 from ..live_options import live_options
 from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
 from .drift import PathLog, check_plot, drift_line, write_plot
+from .plan_file import Plan, check_plan, options_plan, read_plan
 from .roles import RoverError
 from .sim import SETTLE_MAX, RoverSim
-from .tasks import ArmWave, Straight, Task, Turn
+from .tasks import DISTANCE_MAX, DRIVES, RATE_MAX, SPEED_MAX, TURN_MAX
 
-DISTANCE_MAX = 1_000.0
-"""m: the longest drive (it must also end within ``sim.TASK_TIMEOUT``
-simulated seconds, 120 s: at 0.5 m/s, about 55 m)."""
-SPEED_MAX = 10.0
-"""m/s: the fastest drive asked for (the wheel servos' limits cap the real speed)."""
-TURN_MAX = 3_600.0
-"""deg: the largest turn in place (ten turns)."""
-RATE_MAX = 360.0
-"""deg/s: the fastest turn asked for."""
+PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
+"""The options a ``--plan`` replaces (its tasks are the file's)."""
 
 
 @click.command("rover-drive", context_settings={"help_option_names": ["-h", "--help"]})
@@ -75,6 +68,13 @@ RATE_MAX = 360.0
     default=False,
     show_default=True,
     help="swing the shoulder pan joint +-0.4 rad while driving",
+)
+@click.option(
+    "--plan",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="run the tasks of this YAML task plan (straight, turn, hold; an arm motion) "
+    "instead of --distance/--turn/--arm (docs/mira3d.md, Task plans)",
 )
 @click.option(
     "--settle",
@@ -161,6 +161,7 @@ def rover_drive_command(
     turn: float,
     rate: float,
     arm: bool,
+    plan: Path | None,
     settle: float,
     report: Path | None,
     record: Path | None,
@@ -186,6 +187,8 @@ def rover_drive_command(
     if check_console_options(click.get_current_context(), console):
         serve_console(scene, names, settle, pace, port)
         return
+    if plan is not None:
+        _check_plan_options(click.get_current_context())
     check_task_options(click.get_current_context(), task, trials, seed)
     if task is not None:
         run = TaskRun(scene, task, trials or 0, seed, workers, executor)
@@ -207,6 +210,11 @@ def rover_drive_command(
         out.check_not_dangling(record, overwrite)
     if plot is not None:
         check_plot(plot, overwrite, report)
+    to_run = (
+        read_plan(plan) if plan is not None else _options_plan(distance, speed, turn, rate, arm)
+    )
+    if to_run.rovers is not None and names:
+        raise click.UsageError(f"--rover does not go with a plan that names its rovers ({plan})")
     logs: list[PathLog] = []
     with contextlib.ExitStack() as files:
         # All or nothing: both files are made before driving (a folder we cannot write in
@@ -218,11 +226,7 @@ def rover_drive_command(
         results, warnings = _drive(
             scene,
             names,
-            distance,
-            speed,
-            turn,
-            rate,
-            arm,
+            to_run,
             settle,
             record,
             record_to,
@@ -242,14 +246,29 @@ def rover_drive_command(
         raise click.ClickException(f"MuJoCo warned while driving: {warnings}")
 
 
+def _check_plan_options(ctx: click.Context) -> None:
+    """``--plan`` with an option whose tasks it replaces: a usage error."""
+    src = click.core.ParameterSource
+    for name in PLAN_EXCLUDES:
+        if ctx.get_parameter_source(name) not in (src.DEFAULT, None):
+            raise click.UsageError(f"--{name} does not go with --plan (the plan gives the tasks)")
+
+
+def _options_plan(distance: float, speed: float, turn: float, rate: float, arm: bool) -> Plan:
+    """The plan of ``--distance``/``--turn``/``--arm``: drive straight, then turn in place
+    (a 0 is no task), the arm swinging during both."""
+    tasks: list[dict] = []
+    if distance:
+        tasks.append({"kind": "straight", "distance": distance, "speed": speed})
+    if turn:
+        tasks.append({"kind": "turn", "angle_deg": turn, "rate_deg": rate})
+    return options_plan(tasks, {"kind": "arm_wave"} if arm else None, "rover-drive options")
+
+
 def _drive(
     scene: Path,
     names: tuple[str, ...],
-    distance: float,
-    speed: float,
-    turn: float,
-    rate: float,
-    arm: bool,
+    plan: Plan,
     settle: float,
     record: Path | None,
     record_to: Any,
@@ -257,7 +276,8 @@ def _drive(
     paths: list[PathLog] | None = None,
     stream: tuple[int, float, bool] | None = None,
 ) -> tuple[list[dict], dict[str, int]]:
-    """Drive, print each task's summary; the results and MuJoCo's warnings. The
+    """Run ``plan``'s tasks in order, print each task's summary; the results and MuJoCo's
+    warnings. ``names``: the rovers (--rover) where the plan names none. The
     recording of ``record`` goes to ``record_to`` (its reserved file); with ``pace``,
     the drive is shown live at that pace (it only reads the state); ``paths`` gets a
     :class:`PathLog` of the drive; ``stream`` (port, pace, wait): the recording's
@@ -265,9 +285,9 @@ def _drive(
     recorder = live = foxglove = None
     try:
         sim = RoverSim(scene)
-        chosen = list(names) or list(sim.rovers)
-        for n in chosen:
+        for n in names:
             sim.rover(n)
+        chosen = check_plan(plan, sim.rovers, names)  # the whole plan, before anything runs
         if stream is not None:
             from ..foxglove_live import FoxgloveStream
 
@@ -304,14 +324,8 @@ def _drive(
             paths.append(PathLog(sim, sim.rovers))
             sim.on_step.append(paths[-1].step)
         results: list[dict] = []
-        plans: list[tuple[str, Callable[[], Task]]] = []
-        if distance:
-            plans.append(("straight", lambda: Straight(distance, speed=speed)))
-        if turn:
-            plans.append(("turn", lambda: Turn(math.radians(turn), rate=math.radians(rate))))
-        for _, make in plans:
-            waves = {n: ArmWave() for n in chosen} if arm else None
-            for r in sim.run({n: make() for n in chosen}, arm=waves).values():
+        for spec in plan.tasks:
+            for r in DRIVES[spec["kind"]].run(sim, spec, chosen, plan.arm).values():
                 click.echo(r.summary())
                 click.echo(drift_line(r.rover, r.task, r.drift))
                 results.append(asdict(r))

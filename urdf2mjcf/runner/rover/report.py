@@ -40,7 +40,7 @@ class TaskReport:
     """deg."""
     slip: float
     """Straight: 1 - true path / wheel odometry path; turn: 1 - true turn / wheel odometry
-    turn. The share of the wheels' motion that did not move the rover."""
+    turn. The share of the wheels' motion that did not move the rover (hold: 0)."""
     max_tilt: float
     max_roll: float
     max_pitch: float
@@ -53,14 +53,20 @@ class TaskReport:
 
     def summary(self) -> str:
         unit = "deg" if self.task == "turn" else "m"
+        what = (
+            f"hold {self.duration:.1f} s"
+            if self.task == "hold"
+            else f"{self.task} {self.commanded:g} {unit} in {self.duration:.1f} s"
+        )
         return (
-            f"{self.rover}: {self.task} {self.commanded:g} {unit} in {self.duration:.1f} s; "
+            f"{self.rover}: {what}; "
             f"true {self.true_distance:.3f} m moved, {self.true_turn:.1f} deg turned; "
             f"odometry error {self.odometry_position_error:.3f} m / "
             f"{self.odometry_heading_error:.1f} deg "
             f"(wheel + IMU {self.fused_position_error:.3f} m); "
             + (f"wheels counted {self.odometry['turn']:.0f} deg; " if self.task == "turn" else "")
-            + f"slip {100 * self.slip:.1f} %; tilt up to {self.max_tilt:.1f} deg"
+            + (f"slip {100 * self.slip:.1f} %; " if self.task != "hold" else "")
+            + f"tilt up to {self.max_tilt:.1f} deg"
             + ("; TIPPED" if self.tipped else "")
         )
 
@@ -107,7 +113,9 @@ class _Track:
         }.get(kind, 0.0)
         wheel_path = abs(odo.distance - self.odo0[0])
         wheel_turn = abs(odo.turned - self.odo0[1])
-        if kind == "turn":  # the share of the wheels' rotation that did not turn the rover
+        if kind == "hold":  # braked: the wheels' creep is no drive to compare against
+            slip = 0.0
+        elif kind == "turn":  # the share of the wheels' rotation that did not turn the rover
             slip = 1.0 - abs(self.turned) / wheel_turn if wheel_turn > 1e-6 else 0.0
         else:  # the share of the wheels' travel that did not move the rover
             slip = 1.0 - self.path / wheel_path if wheel_path > 1e-6 else 0.0

@@ -1,15 +1,46 @@
 """What each rover does, one command per step: closed loops on the odometry
-(``Straight``, ``Turn``, ``Hold``) and an arm motion (``ArmWave``)."""
+(``Straight``, ``Turn``, ``Hold``) and an arm motion (``ArmWave``); and their kinds.
+
+:data:`TASKS` maps each kind a task plan names (``straight``, ``turn``, ``hold``,
+``arm_wave``) to its registered class, as :mod:`urdf2mjcf.runner.steps` does for the
+demo's steps: ``keys`` (each key's check, allowed values, default and meaning) and
+``required`` are its schema, :meth:`TaskKind.check` checks a task against one rover of
+the bundle (an arm joint index against its arm joints), :meth:`TaskKind.build` makes
+the task from a checked mapping and :meth:`DriveKind.run` runs it on rovers at once.
+``rover-drive --distance/--turn/--arm`` and ``--plan`` (:mod:`.plan_file`) both make
+their tasks here.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
+from ..checks import DURATION_MAX, JOINTS_MAX, Check, Waypoints, count, flag, ranged
 from .roles import Rover
 from .state import SimState
+
+DISTANCE_MAX = 1_000.0
+"""m: the longest drive (it must also end within ``sim.TASK_TIMEOUT``
+simulated seconds, 120 s: at 0.5 m/s, about 55 m)."""
+SPEED_MAX = 10.0
+"""m/s: the fastest drive asked for (the wheel servos' limits cap the real speed)."""
+ACCEL_MAX = 10.0
+"""m/s^2: the largest speed-up or braking of a drive."""
+TURN_MAX = 3_600.0
+"""deg: the largest turn in place (ten turns)."""
+RATE_MAX = 360.0
+"""deg/s: the fastest turn asked for."""
+HOLD_MAX = 100.0
+"""s: the longest hold (under ``sim.TASK_TIMEOUT``, 120 s, so a hold always ends)."""
+AMPLITUDE_MAX = 3.0
+"""rad: the largest arm swing either way."""
+PERIOD_RANGE = (0.5, DURATION_MAX)
+"""s: an arm swing's period (a shorter one only shakes the position servos)."""
 
 
 class Task:
@@ -122,3 +153,176 @@ class ArmWave:
         ease = min(1.0, t / self.period)
         q[self.joint] += ease * self.amplitude * math.sin(2 * math.pi * t / self.period)
         return q
+
+
+# -- the kinds a task plan names ------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a task kind: its check, what it allows and its default (shown in the
+    docs' table, generated from these), and what it means."""
+
+    check: Check
+    allowed: str
+    meaning: str
+    default: Any = None
+    """None: the key is required."""
+
+
+def _number(
+    low: float, high: float, unit: str, meaning: str, default: Any = None, *, low_open: bool = False
+) -> Key:
+    allowed = f"above {low:g}, up to {high:g} {unit}" if low_open else f"{low:g} .. {high:g} {unit}"
+    return Key(ranged(low, high, low_open), allowed, meaning, default)
+
+
+def _flag(meaning: str, default: bool) -> Key:
+    return Key(flag, "true, false", meaning, default)
+
+
+class TaskKind:
+    """A kind of rover task: its schema, its check against a rover and its making."""
+
+    kind: ClassVar[str]
+    arm: ClassVar[bool] = False
+    """An arm motion (the plan's ``arm``, beside every drive task), not a drive task."""
+    keys: ClassVar[dict[str, Key]] = {}
+    required: ClassVar[tuple[str, ...]] = ()
+
+    @property
+    def checks(self) -> dict[str, Check]:
+        return {key: k.check for key, k in self.keys.items()}
+
+    def value(self, spec: Mapping, key: str) -> Any:
+        """``spec``'s value of ``key``, or the key's default."""
+        return spec[key] if key in spec else self.keys[key].default
+
+    def check(self, spec: Mapping, at: str, rover: Rover, w: Waypoints) -> None:
+        """Raise ``w.fail`` where the (shape-checked) task asks what ``rover`` lacks."""
+
+    def build(self, spec: Mapping) -> Any:
+        raise NotImplementedError
+
+
+class DriveKind(TaskKind):
+    """A closed loop on the odometry, run on every named rover at once."""
+
+    def build(self, spec: Mapping) -> Task:
+        raise NotImplementedError
+
+    def run(
+        self, sim: Any, spec: Mapping, names: Sequence[str], arm: Mapping | None = None
+    ) -> dict[str, Any]:
+        """Run the task on the rovers ``names`` of ``sim`` (a RoverSim, untyped here: ``sim``
+        imports this module) at the same time, each with the arm motion ``arm`` (a checked
+        mapping) if given; their reports, as ``RoverSim.run`` gives them."""
+        waves = {n: TASKS[arm["kind"]].build(arm) for n in names} if arm else None
+        return sim.run({n: self.build(spec) for n in names}, arm=waves)
+
+
+TASKS: dict[str, TaskKind] = {}
+"""Kind -> its registered class, in the order the docs list them."""
+
+
+def register(cls: type[TaskKind]) -> type[TaskKind]:
+    TASKS[cls.kind] = cls()
+    return cls
+
+
+@register
+class StraightKind(DriveKind):
+    kind = "straight"
+    keys = {
+        "distance": _number(
+            -DISTANCE_MAX, DISTANCE_MAX, "m", "drive straight this far (negative: backwards)"
+        ),
+        "speed": _number(0.0, SPEED_MAX, "m/s", "top speed", 0.5, low_open=True),
+        "accel": _number(0.0, ACCEL_MAX, "m/s²", "speed-up and braking", 0.5, low_open=True),
+        "hold_heading": _flag("hold the start heading with the IMU", True),
+    }
+    required = ("distance",)
+
+    def build(self, spec: Mapping) -> Straight:
+        return Straight(
+            float(spec["distance"]),
+            speed=float(self.value(spec, "speed")),
+            accel=float(self.value(spec, "accel")),
+            hold_heading=bool(self.value(spec, "hold_heading")),
+        )
+
+
+@register
+class TurnKind(DriveKind):
+    kind = "turn"
+    keys = {
+        "angle_deg": _number(-TURN_MAX, TURN_MAX, "deg", "turn in place (positive: left)"),
+        "rate_deg": _number(0.0, RATE_MAX, "deg/s", "top turn rate", 30.0, low_open=True),
+        "imu": _flag("measure the turn with the IMU (false: with the wheels)", True),
+    }
+    required = ("angle_deg",)
+
+    def build(self, spec: Mapping) -> Turn:
+        return Turn(
+            math.radians(float(spec["angle_deg"])),
+            rate=math.radians(float(self.value(spec, "rate_deg"))),
+            imu=bool(self.value(spec, "imu")),
+        )
+
+
+@register
+class HoldKind(DriveKind):
+    kind = "hold"
+    keys = {"duration": _number(0.0, HOLD_MAX, "s", "stand still, wheels held", 1.0)}
+
+    def build(self, spec: Mapping) -> Hold:
+        return Hold(float(self.value(spec, "duration")))
+
+
+@register
+class ArmWaveKind(TaskKind):
+    kind = "arm_wave"
+    arm = True
+    keys = {
+        "joint": Key(
+            count(JOINTS_MAX), "0 .. the rover's arm joints - 1", "arm joint (roles order)", 0
+        ),
+        "amplitude": _number(
+            -AMPLITUDE_MAX, AMPLITUDE_MAX, "rad", "swing about the home target", 0.4
+        ),
+        "period": _number(*PERIOD_RANGE, "s", "one swing, eased in over the first", 6.0),
+    }
+
+    def check(self, spec: Mapping, at: str, rover: Rover, w: Waypoints) -> None:
+        joint, n = self.value(spec, "joint"), len(rover.arm)
+        if joint >= n:
+            joints = f"0 .. {n - 1}" if n else "none"
+            message = f"{joint} is not an arm joint of rover '{rover.name}' (joints {joints})"
+            raise w.fail(f"{at}.joint", message)
+
+    def build(self, spec: Mapping) -> ArmWave:
+        return ArmWave(
+            joint=int(self.value(spec, "joint")),
+            amplitude=float(self.value(spec, "amplitude")),
+            period=float(self.value(spec, "period")),
+        )
+
+
+DRIVES: dict[str, DriveKind] = {k: t for k, t in TASKS.items() if isinstance(t, DriveKind)}
+"""The drive task kinds (a plan's ``tasks``), each with its ``run``."""
+
+
+def keys_table() -> list[str]:
+    """The task kinds' keys as a Markdown table (docs/mira3d.md shows it; a test checks)."""
+    rows = ["| kind | key | values | default | meaning |", "|---|---|---|---|---|"]
+    for kind, task in TASKS.items():
+        for key, k in task.keys.items():
+            default = (
+                "required"
+                if k.default is None
+                else str(k.default).lower()
+                if isinstance(k.default, bool)
+                else f"{k.default:g}"
+            )
+            rows.append(f"| `{kind}` | `{key}` | {k.allowed} | {default} | {k.meaning} |")
+    return rows
