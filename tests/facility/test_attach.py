@@ -277,3 +277,58 @@ def test_a_name_twice_or_a_different_compiler_is_an_error_naming_the_component()
     )
     with pytest.raises(InputError, match="compiler"):
         other(world)
+
+
+def test_the_deliver_world_names_the_rovers_it_is_assembled_with(tmp_path):
+    """MIRA3D's pair: the world's regolith grains are welded to the rovers' bases, which
+    only the assembled scene holds. Each rover file is the model the scene holds, and the
+    welds join the world's grains to them."""
+    recipe = load_recipe(ROOT / "recipes" / "mira3d-pair-floor.yaml")
+    out = tmp_path / "pair"
+    build_facility(recipe, out, root=ROOT)
+    scene = mujoco.MjModel.from_xml_path(str(out / "scene.xml"))
+    for rover in ("collector", "printer"):
+        part = mujoco.MjModel.from_xml_path(str(out / "components" / rover / "mira3d_rover.xml"))
+        assert not (diff := _compare(scene, part, _roots(part)[0])), (rover, diff[:5])
+        weld = scene.eq(f"regolith_0_{rover}")
+        assert scene.body(weld.obj1id[0]).name == f"{rover}_base_link"
+        assert scene.body(weld.obj2id[0]).name == "regolith_0"
+
+
+WORLD_WITH_A_WELD = """<?xml version="1.0"?>
+<robot name="w">
+  <link name="world"/>
+  <mujoco>
+    <worldbody>
+      <body name="grain" pos="1 2 0.5"><freejoint name="grain_free"/>
+        <inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>
+        <geom type="sphere" size="0.05"/></body>
+    </worldbody>
+    <equality><weld name="held" body1="part_base" body2="grain"/></equality>
+  </mujoco>
+</robot>
+"""
+
+
+def test_a_world_may_name_what_is_attached_to_it_only_when_it_is_assembled(tmp_path):
+    """``ExtensionConfig.assembly``: a world's weld to a part's body is no error before the
+    part is attached, and the assembled home key starts its free body at its pose; on its
+    own, MuJoCo's error names the weld."""
+    from dataclasses import replace
+
+    world = tmp_path / "w.urdf"
+    world.write_text(WORLD_WITH_A_WELD)
+    with pytest.raises(Exception, match="held"):
+        api.build(world, api.make_options())
+    options = api.make_options()
+    options = replace(options, extension=replace(options.extension, assembly=True))
+    _model, result = api.build(world, options)
+    shelf = _emitted(ROOT / "facility/mockups/shelf/urdf/shelf.urdf.xacro", prefix="part_")
+    root = shelf.edit()
+    root.find("worldbody/body").set("name", "part_base")
+    part = attach.Part(
+        "part", type(shelf)(root, shelf.files, shelf.qpos_home), (3, 0, 0), (1, 0, 0, 0)
+    )
+    m = _compiled(attach.Attach([part])(result))
+    assert m.body(m.eq("held").obj1id[0]).name == "part_base"
+    np.testing.assert_allclose(m.key("home").qpos[:3], [1, 2, 0.5])

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Collection, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -214,9 +214,10 @@ def build_facility(
             options["actuator_config"] = None  # every robot brings its own actuators
         joined = attach.Attach(parts, recipe=recipe.path)
         passes = [step for step in (joined, folding, tagging) if step is not None]
-        report = api.convert(
-            top, stage / "scene.xml", args=args, scene=False, model_passes=passes, **options
-        )
+        config = api.make_options(args=args, scene=False, **options)
+        if parts:  # the world's <mujoco> may name the parts' bodies (a weld to a rover)
+            config = replace(config, extension=replace(config.extension, assembly=True))
+        report = api.convert(top, stage / "scene.xml", config, model_passes=passes)
         placed += tagging.placed
         if components:
             assets = sorted(

@@ -167,6 +167,12 @@ class ExtensionConfig:
     check: bool = True
     """Compile the merged model once with MuJoCo and report an error in
     ``<mujoco>`` content against that content."""
+    assembly: bool = False
+    """The document is a world that parts are attached to afterwards (a facility's
+    components, ``urdf2mjcf.facility.attach``): its ``<mujoco>`` content may name their
+    bodies (a weld between the world's grains and a rover's base), so MuJoCo cannot
+    compile it alone. An error is then left to the validation of the assembled scene,
+    and keyframes are re-padded from the document's own poses."""
 
 
 @dataclass
@@ -221,7 +227,7 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
 
     keys = [k for k, q in owned.items() if q is not None and k.get("qpos") == q and _attached(k)]
     if cfg.check or (keys and _joint_layout(root) != layout):
-        _compile(ctx, keys, layout)
+        _compile(ctx, keys, layout, assembly=cfg.assembly)
 
     return replace(
         result,
@@ -663,9 +669,13 @@ def _joint_layout(root: etree._Element) -> list[tuple[str | None, int]]:
     return out
 
 
-def _compile(ctx: _Context, keys: list[etree._Element], layout: list) -> None:
+def _compile(
+    ctx: _Context, keys: list[etree._Element], layout: list, *, assembly: bool = False
+) -> None:
     """Compile the merged model without our keyframes; blame ``<mujoco>`` content for
-    an error in it; re-pad our keyframes when joints were added."""
+    an error in it; re-pad our keyframes when joints were added. ``assembly``: an
+    error is not blamed (parts are attached later) and keys are re-padded from the
+    document's poses (:func:`_repad_from_tree`)."""
     import mujoco
 
     from .validate import _LOCK
@@ -687,6 +697,9 @@ def _compile(ctx: _Context, keys: list[etree._Element], layout: list) -> None:
             mujoco.set_mju_user_warning(previous)
     for key, parent, index in reversed(places):
         parent.insert(index, key)
+    if error is not None and assembly:
+        _repad_from_tree(ctx.root, keys, layout)
+        return
     if error is not None:
         _blame(ctx, xml, error)
         log.debug("%s: merged model does not compile: %s", ctx.source, error)
@@ -711,6 +724,41 @@ def _compile(ctx: _Context, keys: list[etree._Element], layout: list) -> None:
                 if kept is not None and len(kept) == width
                 else m.qpos0[adr : adr + width].tolist()
             )
+        if new != values:
+            key.set("qpos", fmt_vec(new))
+
+
+def _repad_from_tree(root: etree._Element, keys: list[etree._Element], layout: list) -> None:
+    """Re-pad ``keys`` without compiling: a joint of ``layout`` keeps its values, an
+    added one starts where MuJoCo would start it (a free joint at its body's pos and
+    quat, a ball at identity, a hinge or slide at its ``ref``)."""
+    world = root.find("worldbody")
+    if world is None:
+        return
+    widths = dict(layout)
+    for key in keys:
+        values = [float(x) for x in (key.get("qpos") or "").split()]
+        if len(values) != sum(widths.values()) or len(widths) != len(layout):
+            continue
+        old: dict[str, list[float]] = {}
+        pos = 0
+        for name, width in layout:
+            old[name] = values[pos : pos + width]
+            pos += width
+        new: list[float] = []
+        for el in world.iter("joint", "freejoint"):
+            kind = "free" if el.tag == "freejoint" else el.get("type", "hinge")
+            kept = old.get(el.get("name"))
+            if kept is not None:
+                new += kept
+            elif kind == "free":
+                body = el.getparent()
+                new += [float(v) for v in body.get("pos", "0 0 0").split()]
+                new += [float(v) for v in body.get("quat", "1 0 0 0").split()]
+            elif kind == "ball":
+                new += [1.0, 0.0, 0.0, 0.0]
+            else:
+                new.append(float(el.get("ref", "0")))
         if new != values:
             key.set("qpos", fmt_vec(new))
 
