@@ -4,6 +4,10 @@ poses on reset, actuator targets as actions, an observation dict, rendering.
 A subclass names its robot's pieces (from the manifest's roles, never hard-coded):
 the actuators an action drives, the vectors it observes, the camera of the camera
 observations, and its task (reward, termination).
+
+The physics steps through the runtime's one :class:`~urdf2mjcf.runner.sim.Sim`
+(``env.sim``: ``frame_skip`` steps per env step), whose sensor noise and camera models
+the observations use.
 """
 
 from __future__ import annotations
@@ -21,8 +25,10 @@ from gymnasium import spaces
 
 from ..errors import InputError
 from ..facility.recipe import JITTER_KEYS, Ranges, Recipe
+from ..runner.camera import CameraModel
 from ..runner.noise import SensorNoise
 from ..runner.perception import render_rgbd
+from ..runner.sim import Sim
 from .build import facility_folder, resolve_recipe
 from .poses import Poses
 
@@ -103,6 +109,16 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         self.recipe = loaded
         self.model, self.data, self.manifest, self.manifest_path = self._open(folder)
         m = self.model
+        self.sensor_noise = sensor_noise
+        self.sim = Sim(
+            m,
+            self.data,
+            self.manifest,
+            folder=folder,
+            manifest_path=self.manifest_path,
+            sensor_noise=sensor_noise,
+        )
+        """The Sim every step goes through; its noise is reseeded by every reset."""
         self.key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
         placed = [n for n, c in self.manifest["components"].items() if "pose" in c]
         if jitter is None:
@@ -133,10 +149,13 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         self._camera_size = self._fits(camera_size, "camera_size")
         self.camera_id = -1
         """The camera of the camera observations (-1: none)."""
+        self.camera_model: CameraModel | None = None
+        """The camera observations' intrinsics (the Sim's model of the camera)."""
         if self.camera_obs:
             role = camera or self.default_camera
             self.camera_id = self._camera_id(role, "camera")
             w, h = self._camera_size
+            self.camera_model = self.sim.camera(m.camera(self.camera_id).name, (w, h))
             self._far = float(m.stat.extent * m.vis.map.zfar)
             obs_spaces["rgb"] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
             obs_spaces["depth"] = spaces.Box(0.0, self._far, shape=(h, w), dtype=np.float32)
@@ -148,8 +167,12 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         )
         self._renderers: dict[str, mujoco.Renderer] = {}
         self.jitter_seed: int | None = None
-        self.sensor_noise = sensor_noise
-        self.noise = self._noise(None)
+
+    @property
+    def noise(self) -> SensorNoise:
+        """The sensor noise of this episode (the Sim's; passes data through with
+        ``sensor_noise=False``)."""
+        return self.sim.noise
 
     # -- what a subclass provides -------------------------------------------------
 
@@ -197,27 +220,24 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         jitter (``options={"jitter_seed": s}``: the poses of ``make-facility --seed s``)."""
         super().reset(seed=seed)
         m, d = self.model, self.data
-        if self.key >= 0:
-            mujoco.mj_resetDataKeyframe(m, d, self.key)
-        else:
-            mujoco.mj_resetData(m, d)
+        self.sim.reset(self.key if self.key >= 0 else None, forward=False)
         drawn = int(self.np_random.integers(MAX_SEED))
         given = (options or {}).get("jitter_seed")
         self.jitter_seed = int(given) if given is not None else drawn
         offsets = self.poses.apply(m, d, self.jitter_seed)
-        self.noise = self._noise(self.jitter_seed)
+        self.sim.reseed(self.jitter_seed)
         mujoco.mj_forward(m, d)
         self.task_reset()
         return self._obs(), {"jitter_seed": self.jitter_seed, "offsets": offsets}
 
     def step(self, action: np.ndarray) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
-        m, d = self.model, self.data
+        d = self.data
         # MuJoCo clamps a limited control to its range anyway; NaN would poison the state
         target = np.nan_to_num(np.asarray(action, dtype=np.float64), nan=0.0)
         d.ctrl[self._acts] = np.clip(target, self._lo, self._hi)
         bad = mujoco.mjtWarning.mjWARN_BADQACC
         before = int(d.warning[bad].number)
-        mujoco.mj_step(m, d, nstep=self.frame_skip)
+        self.sim.step(self.frame_skip)
         reward, terminated, info = self.task_step()
         # MuJoCo resets the state itself when it diverges: end the episode instead
         unstable = int(d.warning[bad].number) > before or not np.all(np.isfinite(d.qpos))
@@ -245,10 +265,6 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         self._renderers.clear()
 
     # -- helpers --------------------------------------------------------------------
-
-    def _noise(self, seed: int | None) -> SensorNoise:
-        """The recipe's sensor noise for ``seed`` (none with ``sensor_noise=False``)."""
-        return SensorNoise.from_manifest(self.manifest if self.sensor_noise else {}, seed)
 
     def _camera_id(self, role: str, what: str) -> int:
         """A camera by its role (``wrist``) or its model name."""

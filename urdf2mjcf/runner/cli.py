@@ -391,7 +391,7 @@ def _once(
             sinks=[foxglove] if foxglove is not None else (),
         )
         recorder.step()  # the start
-        demo.ctl.on_step.append(recorder.step)
+        demo.sim.on_step.append(recorder.step)
     live = None
     try:
         if foxglove is not None and stream is not None:
@@ -400,12 +400,12 @@ def _once(
             if stream.wait:
                 click.echo("waiting for a Foxglove client to subscribe", err=True)
             foxglove.start(wait=stream.wait)
-            demo.ctl.on_step.append(foxglove.step)
+            demo.sim.on_step.append(foxglove.step)
         if pace is not None:
             from ..view.live import LiveView
 
             live = LiveView(fac.model, fac.data, pace=pace, what=f"facility-demo {fac.folder}")
-            demo.ctl.on_step.append(live.step)
+            demo.sim.on_step.append(live.step)
         res = demo.run()
     except BaseException:
         if recorder is not None:

@@ -3,18 +3,19 @@
 Joint-space moves follow a quintic time scaling (zero velocity and
 acceleration at both ends) whose duration keeps every joint under its
 velocity limit; Cartesian paths are a dense list of IK solutions timed the
-same way along the path. After every physics step a ``monitor`` callback
-(the judge) sees the state.
+same way along the path. The controller steps through a :class:`~.sim.Sim`: its
+targets are written as the Sim's control before every physics step, a ``monitor``
+callback (the judge) sees the state right after it, then the Sim's hooks.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 
-import mujoco
 import numpy as np
 
 from .load import Facility
+from .sim import Sim
 
 
 def quintic(s: np.ndarray | float) -> np.ndarray | float:
@@ -35,33 +36,67 @@ def path_duration(path: np.ndarray, vmax: np.ndarray, minimum: float = 0.5) -> f
 class Controller:
     """Position targets for the robot's actuators; time advances only by stepping."""
 
-    def __init__(self, fac: Facility, vmax: np.ndarray, monitor: Callable[[], None] | None = None):
+    def __init__(
+        self,
+        fac: Facility,
+        vmax: np.ndarray,
+        monitor: Callable[[], None] | None = None,
+        *,
+        sim: Sim | None = None,
+    ):
+        """``sim``: the Sim of ``fac`` to step through (None: a new one of ``fac``)."""
         self.fac = fac
+        if sim is None:
+            sim = Sim(fac.model, fac.data, fac.manifest, folder=fac.folder)
+        self.sim = sim
+        if self.sim.m is not fac.model or self.sim.d is not fac.data:
+            raise ValueError("the Sim must hold the facility's own model and data")
         self.m, self.d = fac.model, fac.data
         self.r = fac.robot
         self.vmax = np.asarray(vmax, float)
+        self._monitor: Callable[[], None] | None = None
         self.monitor = monitor
         self.target = self.d.qpos[self.r.qpos].copy()
         self.gripper = float(self.d.ctrl[self.r.gripper_actuator])
-        self.on_step: list[Callable[[], None]] = []
+        self.sim.control.append(self._command)
+
+    @property
+    def monitor(self) -> Callable[[], None] | None:
+        """Called right after every physics step, before the hooks (the demo's judge)."""
+        return self._monitor
+
+    @monitor.setter
+    def monitor(self, value: Callable[[], None] | None) -> None:
+        if self._monitor is not None:
+            self.sim.monitor.remove(self._monitor)
+        self._monitor = value
+        if value is not None:
+            self.sim.monitor.insert(0, value)
+
+    @property
+    def on_step(self) -> list[Callable[[], None]]:
+        """The Sim's hooks, called after every physics step (recorders, live views)."""
+        return self.sim.on_step
+
+    @on_step.setter
+    def on_step(self, hooks: list[Callable[[], None]]) -> None:
+        self.sim.on_step = hooks
 
     @property
     def dt(self) -> float:
-        return float(self.m.opt.timestep)
+        return self.sim.dt
 
     def step(self, n: int = 1) -> None:
-        for _ in range(n):
-            self._step()
+        self.sim.step(n)
 
-    def _step(self) -> None:
+    def _command(self) -> None:
+        """The Sim's control: the servo targets, before every physics step."""
         d = self.d
         d.ctrl[self.r.actuators] = self.target
         d.ctrl[self.r.gripper_actuator] = self.gripper
-        mujoco.mj_step(self.m, d)
-        if self.monitor is not None:
-            self.monitor()
-        for f in self.on_step:
-            f()
+
+    def _step(self) -> None:
+        self.sim.step()
 
     def _track(self, targets: np.ndarray) -> None:
         """Step once per row of ``targets`` (joint targets, computed for the whole

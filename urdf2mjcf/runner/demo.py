@@ -9,7 +9,8 @@ A mockup's pose is never read from the model: a frame or hinge on a component
 (a body of the manifest's components other than the robot) before a ``localize``
 step has estimated that component fails the step. The cameras see through the
 trial's sensor noise (runner/noise.py, seeded by the facility's seed; the lights
-scaled once per trial) unless the Demo is made with ``noise=False``.
+scaled once per trial) unless the Demo is made with ``noise=False``. The demo steps
+through one :class:`~.sim.Sim` (``Demo.sim``), its controller's.
 
 Every step may give ``contacts`` (intended pairs of body-name globs), ``carried``
 (the bag is in the hand: its contacts with the environment count too) and ``settle``.
@@ -33,6 +34,7 @@ from .control import Controller
 from .judge import ContactJudge, stowed
 from .load import Facility
 from .noise import SensorNoise
+from .sim import Sim
 from .steps import STEPS, StepError
 from .waypoints import check_names, read_waypoints
 
@@ -118,7 +120,16 @@ class Demo:
         self.site = self.r.sites[rs.get("site", "grasp")]
         self.bag = spec["bag"]
         self.judge = ContactJudge(fac, self.bag["body"])
-        self.ctl = Controller(fac, self.vmax, monitor=self.judge)
+        # the one Sim this demo steps through: the trial's noise seeded by the facility's seed
+        self.sim = Sim(
+            fac.model,
+            fac.data,
+            fac.manifest,
+            folder=fac.folder,
+            seed=fac.manifest.get("seed") or 0,
+            sensor_noise=bool(noise),
+        )
+        self.ctl = Controller(fac, self.vmax, monitor=self.judge, sim=self.sim)
         self.global_contacts = spec.get("contacts", [])
         self.handle: tuple[np.ndarray, np.ndarray] | None = None
         self.handle_info: dict | None = None
@@ -127,9 +138,9 @@ class Demo:
         self._planner: plan.JointPlanner | None = None
         self.last_plan: dict | None = None
         self._cams: dict[int, perception.Camera] = {}
-        if noise is True:
-            noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
-        self.noise: SensorNoise | None = noise or None
+        if isinstance(noise, SensorNoise):
+            self.sim.noise = noise
+        self.noise: SensorNoise | None = self.sim.noise if noise else None
         if self.noise is not None:
             self.noise.light(self.m)  # this trial's lighting, once, before any rendering
         # component -> its pose estimated from its tags (a localize step)

@@ -374,7 +374,8 @@ class _Attached:
 class Recorder:
     """Writes the ``sources`` of ``(m, d)`` to ``path`` (an .mcap) at ``rates``.
 
-    Call :meth:`step` after every physics step (the first call records the start);
+    Call :meth:`step` after every physics step (the first call records the start): a
+    hook of the run's :class:`~urdf2mjcf.runner.sim.Sim`, ``sim.on_step.append(rec.step)``;
     :meth:`close` finishes the file and moves it into place, :meth:`abort` leaves
     nothing. Also a context manager (an exception aborts). Each message, built once,
     also goes to every one of ``sinks`` as ``(topic, datatype, message, stamp_ns)``

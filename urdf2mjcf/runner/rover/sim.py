@@ -1,5 +1,8 @@
 """A built facility with its rovers, stepped with wheel and arm commands through the
-actuators only; every rover's odometry integrated after every step."""
+actuators only; every rover's odometry integrated after every step.
+
+The physics steps through one :class:`~urdf2mjcf.runner.sim.Sim` (``RoverSim.sim``):
+the arm targets are its control, the odometry its monitor, ``on_step`` its hooks."""
 
 from __future__ import annotations
 
@@ -11,6 +14,7 @@ import numpy as np
 
 from ...limits import TIMESTEP_RANGE
 from ..load import LoadError, open_facility
+from ..sim import Sim
 from .odometry import Odometry, rotation_matrix, true_pose, yaw_of
 from .report import TaskReport, _Track
 from .roles import Rover, RoverError, find_rovers
@@ -29,6 +33,9 @@ class RoverSim:
 
     def __init__(self, folder: str | Path, *, keyframe: str | None = "home"):
         self.folder, path, self.manifest, self.m, self.d = open_facility(folder, keyframe=keyframe)
+        sim = Sim(self.m, self.d, self.manifest, folder=self.folder, manifest_path=path)
+        self.sim = sim
+        """The one Sim the rovers step through."""
         try:
             self.rovers = find_rovers(self.m, self.manifest)
         except (AttributeError, KeyError, TypeError, ValueError, IndexError) as exc:
@@ -57,13 +64,23 @@ class RoverSim:
         self.arm_targets = {n: q.copy() for n, q in self.home.items()}
         self.odometry: dict[str, Odometry] = {}
         self._hold: dict[str, np.ndarray] = {}
-        self.on_step: list[Callable[[], None]] = []
-        """Called after every physics step (a recorder), whatever runs the steps."""
         self.reset_odometry()
+        sim.control.append(self._command_arms)
+        sim.monitor.append(self._integrate_odometry)
+
+    @property
+    def on_step(self) -> list[Callable[[], None]]:
+        """Called after every physics step (a recorder), whatever runs the steps: the
+        Sim's hooks."""
+        return self.sim.on_step
+
+    @on_step.setter
+    def on_step(self, hooks: list[Callable[[], None]]) -> None:
+        self.sim.on_step = hooks
 
     @property
     def dt(self) -> float:
-        return float(self.m.opt.timestep)
+        return self.sim.dt
 
     def reset_odometry(self, name: str | None = None) -> None:
         """Odometry of ``name`` (or every rover) restarted at its true pose."""
@@ -131,14 +148,18 @@ class RoverSim:
 
     def step(self, n: int = 1) -> None:
         """Step the physics ``n`` times with the current commands; update every odometry."""
-        for _ in range(n):
-            for name, r in self.rovers.items():
-                self.d.ctrl[r.arm] = self.arm_targets[name]
-            mujoco.mj_step(self.m, self.d)
-            for name, r in self.rovers.items():
-                self.odometry[name].update(r, self.d, self.dt)
-            for f in self.on_step:
-                f()
+        self.sim.step(n)
+
+    def _command_arms(self) -> None:
+        """The Sim's control: every arm at its targets, before every physics step."""
+        for name, r in self.rovers.items():
+            self.d.ctrl[r.arm] = self.arm_targets[name]
+
+    def _integrate_odometry(self) -> None:
+        """The Sim's monitor: every rover's odometry, right after every physics step."""
+        dt = self.dt
+        for name, r in self.rovers.items():
+            self.odometry[name].update(r, self.d, dt)
 
     def settle(self, seconds: float = 1.0) -> None:
         """Stand still (wheels held, arm at its targets) for ``seconds`` (0 .. SETTLE_MAX);
