@@ -22,8 +22,9 @@ from ..bundle import MANIFEST
 from ..cli_types import BoundedInt
 from ..limits import SEED_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
-from .executors import EXECUTORS, Kind, import_ray
+from .executors import Kind, import_ray
 from .live_options import live_options
+from .trial_options import trial_options
 
 if TYPE_CHECKING:
     from .load import Facility
@@ -113,19 +114,7 @@ def _frames_folder(
     help="write a ROS 2 recording (.mcap) of the run; not with --trials "
     "(pip install 'mjcf-forge[ros]')",
 )
-@click.option(
-    "--workers",
-    type=BoundedInt(1, 1024),
-    default=None,
-    help="parallel trials: processes of the local pool, or CPUs of a Ray instance started here",
-)
-@click.option(
-    "--executor",
-    type=click.Choice(EXECUTORS),
-    default="local",
-    show_default=True,
-    help="where --trials run: the local process pool, or Ray (pip install 'mjcf-forge[ray]')",
-)
+@trial_options()
 @click.option(
     "--address",
     default=None,

@@ -12,8 +12,9 @@ import click
 
 from ...cli_types import BoundedInt, FiniteFloat
 from ...limits import SEED_MAX
-from ..executors import EXECUTORS, Kind
+from ..executors import Kind
 from ..live_options import live_options
+from ..trial_options import trial_options
 from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
 from .drift import PathLog, check_plot, drift_line, write_plot
 from .plan_file import Plan, check_plan, options_plan, read_plan
@@ -140,19 +141,7 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
     default=None,
     help="with --task: the seed (the pile's grains, the collector's start); first of --trials",
 )
-@click.option(
-    "--workers",
-    type=BoundedInt(1, 1024),
-    default=None,
-    help="with --trials: processes of the local pool, or CPUs of a Ray instance started here",
-)
-@click.option(
-    "--executor",
-    type=click.Choice(EXECUTORS),
-    default="local",
-    show_default=True,
-    help="where --trials run: the local process pool, or Ray (pip install 'mjcf-forge[ray]')",
-)
+@trial_options()
 def rover_drive_command(
     scene: Path,
     names: tuple[str, ...],
