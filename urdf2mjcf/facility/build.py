@@ -1,9 +1,11 @@
 """``make-facility``: recipe -> xacro arguments -> one compiled facility.
 
-The whole facility is one URDF (the recipe's top-level xacro with its flags
-and poses as xacro arguments), compiled by :func:`urdf2mjcf.convert` into
-``scene.xml``; each asset in it is also compiled on its own into
-``components/<asset>/`` for working on one mockup at a time. The output
+Each component with ``attach`` in the recipe's table is compiled once on its own
+into ``components/`` and that document is attached into the world (the recipe's
+top-level xacro, with its flags and poses as xacro arguments) at its placement
+(:mod:`urdf2mjcf.facility.attach`), all converted by :func:`urdf2mjcf.convert`
+into ``scene.xml``. A component without ``attach`` is part of the top-level xacro,
+and is also compiled on its own into ``components/<asset>/``. The output
 folder is staged beside the target and moved in only when the build succeeded,
 so a failed build leaves the previous one intact. ``facility.json`` lists every
 file we wrote: a rebuild replaces those and keeps anything else in the folder
