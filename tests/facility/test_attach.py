@@ -332,3 +332,14 @@ def test_a_world_may_name_what_is_attached_to_it_only_when_it_is_assembled(tmp_p
     m = _compiled(attach.Attach([part])(result))
     assert m.body(m.eq("held").obj1id[0]).name == "part_base"
     np.testing.assert_allclose(m.key("home").qpos[:3], [1, 2, 0.5])
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "recipes").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_recipe_we_ship_is_assembled(path):
+    """docs/facility.md, "Assembly": every component of our recipes is attached, and no
+    world xacro includes a component's package."""
+    recipe = load_recipe(path)
+    assert all(c.attach is not None for c in recipe.components.values())
+    world = (ROOT / recipe.xacro).read_text()
+    packages = {Path(c.standalone).parts[2] for c in recipe.components.values()}
+    assert not [p for p in packages if f"$(find {p})" in world]
