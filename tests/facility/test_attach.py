@@ -343,3 +343,38 @@ def test_every_recipe_we_ship_is_assembled(path):
     world = (ROOT / recipe.xacro).read_text()
     packages = {Path(c.standalone).parts[2] for c in recipe.components.values()}
     assert not [p for p in packages if f"$(find {p})" in world]
+
+
+@pytest.mark.parametrize(
+    ("attach_value", "element", "message"),
+    [
+        ([1, 2], "components.shelf.attach", "mapping"),
+        ({"bad name": 1}, "components.shelf.attach", "not a xacro argument name"),
+        ({"prefix": [1]}, "components.shelf.attach.prefix", "one value"),
+        ({"size": float("nan")}, "components.shelf.attach.size", "finite"),
+        ({"prefix": "x" * 5000}, "components.shelf.attach.prefix", "characters"),
+    ],
+)
+def test_a_bad_attach_names_its_component_and_key(attach_value, element, message):
+    from urdf2mjcf.facility.recipe import parse_recipe
+
+    shelf = {
+        "asset": "shelf",
+        "standalone": "facility/mockups/shelf/urdf/shelf.urdf.xacro",
+        "attach": attach_value,
+    }
+    data = {"name": "r", "xacro": "w.xacro", "components": {"shelf": shelf}}
+    with pytest.raises(InputError) as err:
+        parse_recipe(data, None)
+    assert element in str(err.value) and message in str(err.value)
+
+
+def test_a_flag_in_attach_is_the_recipes_value_or_the_standalones_default():
+    recipe = load_recipe(ROOT / "recipes" / "imetro.yaml", sets={"trainer_bench": "deck"})
+    trainer = recipe.components["trainer"]
+    assert trainer.attach_args(recipe.flags) == {
+        "prefix": "trainer_",
+        "frame": "true",
+        "bench": "deck",
+    }
+    assert trainer.attach_args({}) == {"prefix": "trainer_", "frame": "true"}
