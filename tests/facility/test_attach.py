@@ -15,7 +15,7 @@ import pytest
 from urdf2mjcf import api
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility import attach
-from urdf2mjcf.facility.build import build_facility
+from urdf2mjcf.facility.build import NAMED_PACKAGES, PACKAGE_DIRS, build_facility
 from urdf2mjcf.facility.recipe import load_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -204,13 +204,9 @@ def _emitted(source: Path, **args: str):
 
 
 def _packages() -> dict:
-    dirs = ("facility/robots", "facility/mockups", "facility/worlds")
     return {
-        "package_paths": [ROOT / d for d in dirs],
-        "packages": {
-            "facility_common": ROOT / "facility/common",
-            "facility_meshes": ROOT / "meshes",
-        },
+        "package_paths": [ROOT / d for d in PACKAGE_DIRS],
+        "packages": {name: ROOT / d for name, d in NAMED_PACKAGES.items()},
     }
 
 

@@ -37,8 +37,10 @@ from lxml import etree
 
 from ..errors import InputError
 from ..fmt import fmt_vec
+from ..ir import Quat
 from ..passes.emit import EmitResult
-from ..passes.extension import SECTIONS
+from ..passes.extension import joint_qpos0, joint_width, joints, section
+from ..transforms import canonical_quat, quat_mul, quat_to_matrix
 
 APPENDED = ("contact", "equality", "tendon", "actuator", "sensor")
 """Sections whose children are appended in the component's order."""
@@ -66,31 +68,6 @@ def yaw_quat(yaw: float) -> tuple[float, float, float, float]:
     return (float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2)))
 
 
-def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
-def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    w, x, y, z = q
-    r = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    return r @ v
-
-
 def _vec(el: Any, key: str, default: str) -> np.ndarray:
     return np.array([float(v) for v in el.get(key, default).split()])
 
@@ -98,17 +75,17 @@ def _vec(el: Any, key: str, default: str) -> np.ndarray:
 @dataclass
 class _Placement:
     pos: np.ndarray
-    quat: np.ndarray
+    quat: Quat
     name: str
     file: Path | str | None
 
     def point(self, p: np.ndarray) -> np.ndarray:
-        return self.pos + _rotate(self.quat, p)
+        return self.pos + quat_to_matrix(self.quat) @ p
 
     def rotation(self, q: np.ndarray) -> np.ndarray:
-        out = _mul(self.quat, q / np.linalg.norm(q))
-        out /= np.linalg.norm(out)
-        return -out if out[0] < 0 else out  # w >= 0, as our writer gives every quat
+        # w >= 0, as our writer gives every quat
+        unit = q / np.linalg.norm(q)
+        return np.array(canonical_quat(quat_mul(self.quat, (unit[0], unit[1], unit[2], unit[3]))))
 
     def move(self, el: Any) -> None:
         """Place a world-body element (its pose given in the component's world)."""
@@ -124,7 +101,8 @@ class _Placement:
         _set(el, "pos", pos, not pos.any())
         if el.tag == "light":
             if el.get("dir") is not None:
-                el.set("dir", fmt_vec(_rotate(self.quat, _vec(el, "dir", "0 0 -1")).tolist()))
+                rotated = quat_to_matrix(self.quat) @ _vec(el, "dir", "0 0 -1")
+                el.set("dir", fmt_vec(rotated.tolist()))
         else:
             quat = self.rotation(_vec(el, "quat", "1 0 0 0"))
             _set(el, "quat", quat, quat[0] == 1.0)
@@ -141,30 +119,6 @@ def _same(a: Any, b: Any) -> bool:
     return bool(etree.tostring(a, method="c14n") == etree.tostring(b, method="c14n"))
 
 
-def _section(root: Any, tag: str) -> Any:
-    """The top-level section ``tag`` of ``root``, made in Menagerie's order if missing."""
-    found = root.find(tag)
-    if found is not None:
-        return found
-    el = etree.Element(tag)
-    rank = SECTIONS.index(tag)
-    for existing in root:
-        if existing.tag in SECTIONS and SECTIONS.index(existing.tag) > rank:
-            existing.addprevious(el)
-            return el
-    root.append(el)
-    return el
-
-
-def _joint_widths(worldbody: Any) -> list[tuple[Any, int]]:
-    """(element, qpos width) of every joint in document order: MuJoCo's order."""
-    out = []
-    for el in worldbody.iter("joint", "freejoint"):
-        kind = "free" if el.tag == "freejoint" else el.get("type", "hinge")
-        out.append((el, {"free": 7, "ball": 4}.get(kind, 1)))
-    return out
-
-
 def _home(root: Any) -> tuple[list[float] | None, list[float] | None]:
     key = next((k for k in root.iterfind("keyframe/key") if k.get("name") == "home"), None)
     if key is None:
@@ -172,21 +126,6 @@ def _home(root: Any) -> tuple[list[float] | None, list[float] | None]:
     qpos = [float(v) for v in key.get("qpos", "").split()] or None
     ctrl = [float(v) for v in key.get("ctrl", "").split()] or None
     return qpos, ctrl
-
-
-def _qpos0(worldbody: Any) -> list[float]:
-    """The positions MuJoCo starts from: a free joint at its body's pose, a ball at
-    identity, a hinge or slide at its reference."""
-    out: list[float] = []
-    for el, width in _joint_widths(worldbody):
-        if width == 7:
-            body = el.getparent()
-            out += _vec(body, "pos", "0 0 0").tolist() + _vec(body, "quat", "1 0 0 0").tolist()
-        elif width == 4:
-            out += [1.0, 0.0, 0.0, 0.0]
-        else:
-            out.append(float(el.get("ref", "0")))
-    return out
 
 
 @dataclass
@@ -203,17 +142,17 @@ class Attach:
             return scene
         root = scene.edit()
         files = dict(scene.files)
-        world = _section(root, "worldbody")
         # the scene's own joints and actuators come first, as MuJoCo orders them
-        qpos = _home(root)[0] or _qpos0(world)
-        ctrl = _home(root)[1] or [0.0] * len(_section(root, "actuator"))
+        home_qpos, home_ctrl = _home(root)
+        qpos = home_qpos or [v for el in joints(root) for v in joint_qpos0(el)]
+        ctrl = home_ctrl or [0.0] * len(section(root, "actuator"))
         names = _names(root)
         for part in self.parts:
             part_qpos, part_ctrl = self._attach(root, files, part, names)
             qpos += part_qpos
             ctrl += part_ctrl
             self.attached.append(part.name)
-        keyframe = _section(root, "keyframe")
+        keyframe = section(root, "keyframe")
         key = next((k for k in keyframe if k.get("name") == "home"), None)
         if key is None:
             key = etree.SubElement(keyframe, "key", name="home")
@@ -226,9 +165,9 @@ class Attach:
         if not len(keyframe):
             root.remove(keyframe)
         for tag in APPENDED:  # no empty sections
-            section = root.find(tag)
-            if section is not None and not len(section):
-                root.remove(section)
+            found = root.find(tag)
+            if found is not None and not len(found):
+                root.remove(found)
         return replace(scene, root=root, files=files, qpos_home=tuple(qpos))
 
     def _error(self, part: Part, message: str) -> InputError:
@@ -245,15 +184,16 @@ class Attach:
             raise self._error(part, "its <compiler> differs from the scene's")
         self._defaults(root, child, part)
         self._assets(root, files, child, part)
-        place = _Placement(np.array(part.pos), np.array(part.quat), part.name, self.recipe)
+        place = _Placement(np.array(part.pos), part.quat, part.name, self.recipe)
         child_world = child.find("worldbody")
         moved = copy.deepcopy(child_world) if child_world is not None else etree.Element("w")
-        widths = _joint_widths(moved)
-        qpos = _home(child)[0] or _qpos0(moved)
-        if len(qpos) != sum(w for _, w in widths):
+        moved_joints = list(moved.iter("joint", "freejoint"))
+        qpos = _home(child)[0] or [v for el in moved_joints for v in joint_qpos0(el)]
+        if len(qpos) != sum(joint_width(el) for el in moved_joints):
             raise self._error(part, "its home key does not match its joints")
         at = 0
-        for el, width in widths:
+        for el in moved_joints:
+            width = joint_width(el)
             if width == 7:
                 if el.getparent().getparent() is not moved:
                     raise self._error(part, "a free joint below its root bodies")
@@ -262,7 +202,7 @@ class Attach:
                 qpos[at : at + 7] = p.tolist() + q.tolist()
             at += width
         self._check_names(moved, names, part)
-        world = _section(root, "worldbody")
+        world = section(root, "worldbody")
         for el in list(moved):
             if not isinstance(el.tag, str):
                 continue
@@ -271,11 +211,11 @@ class Attach:
             place.move(el)
             world.append(el)
         for tag in APPENDED:
-            section = child.find(tag)
-            if section is None or not len(section):
+            found = child.find(tag)
+            if found is None or not len(found):
                 continue
-            target = _section(root, tag)
-            for el in section:
+            target = section(root, tag)
+            for el in found:
                 target.append(copy.deepcopy(el))
         actuators = child.find("actuator")
         ctrl = _home(child)[1] or [0.0] * (len(actuators) if actuators is not None else 0)
@@ -285,7 +225,7 @@ class Attach:
         theirs = child.find("default")
         if theirs is None:
             return
-        mine = _section(root, "default")
+        mine = section(root, "default")
         classes = {d.get("class"): d for d in mine.iterfind("default")}
         for el in theirs:
             if not isinstance(el.tag, str):
@@ -305,7 +245,7 @@ class Attach:
         theirs = child.find("asset")
         if theirs is None:
             return
-        mine = _section(root, "asset")
+        mine = section(root, "asset")
         have = {(el.tag, el.get("name")): el for el in mine}
         for el in theirs:
             if not isinstance(el.tag, str):

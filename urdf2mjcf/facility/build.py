@@ -124,6 +124,34 @@ def _convert_options(
     return options
 
 
+def _component_options(
+    root: Path,
+    recipe: Recipe,
+    comp: Component,
+    src: Path,
+    args: Mapping[str, str] | None = None,
+    *,
+    workers: int,
+    cache_dir: Path | None,
+    progress: Callable[[int, int, str], None] | None,
+) -> dict:
+    """:func:`_convert_options` for component ``comp`` compiled on its own from ``src``
+    (with its xacro ``args``): the recipe's actuator file only for a robot."""
+    options = _convert_options(
+        root,
+        recipe,
+        workers=workers,
+        cache_dir=cache_dir,
+        progress=progress,
+        source=src,
+        args=args,
+        prefix=comp.prefix,
+    )
+    if comp.roles is None:  # the actuator file belongs to the robot
+        options["actuator_config"] = None
+    return options
+
+
 def build_facility(
     recipe: Recipe,
     output: Path,
@@ -231,17 +259,9 @@ def build_facility(
                     log.info("no standalone description for %s (%s)", asset, comp.standalone)
                     continue
                 target = stage / "components" / asset / f"{asset}.xml"
-                comp_options = _convert_options(
-                    root,
-                    recipe,
-                    workers=workers,
-                    cache_dir=cache_dir,
-                    progress=progress,
-                    source=src,
-                    prefix=comp.prefix,
+                comp_options = _component_options(
+                    root, recipe, comp, src, workers=workers, cache_dir=cache_dir, progress=progress
                 )
-                if comp.roles is None:  # the actuator file belongs to the robot
-                    comp_options["actuator_config"] = None
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
@@ -319,18 +339,9 @@ def _attached_component(
             element=f"components.{name}.standalone",
         )
     args = comp.attach_args(recipe.flags)
-    options = _convert_options(
-        root,
-        recipe,
-        workers=workers,
-        cache_dir=cache_dir,
-        progress=progress,
-        source=src,
-        args=args,
-        prefix=comp.prefix,
+    options = _component_options(
+        root, recipe, comp, src, args, workers=workers, cache_dir=cache_dir, progress=progress
     )
-    if comp.roles is None:  # the actuator file belongs to the robot
-        options["actuator_config"] = None
     tags = fiducials.Tags([(name, comp.prefix, tag) for tag in comp.fiducials], recipe=recipe.path)
     keep = _Keep()
     if target is not None:

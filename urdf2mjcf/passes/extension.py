@@ -189,22 +189,26 @@ class _Context:
         return URDFError(message, file=self.source, element=element)
 
     def section(self, tag: str) -> etree._Element:
-        """The top-level section ``tag``, created in Menagerie's order if missing."""
-        found = self.root.find(tag)
-        if found is not None:
-            return found
-        el = etree.Element(tag)
-        rank = SECTIONS.index(tag)
-        for existing in self.root:
-            if existing.tag in SECTIONS and SECTIONS.index(existing.tag) > rank:
-                existing.addprevious(el)
-                return el
-        self.root.append(el)
-        return el
+        return section(self.root, tag)
 
     @property
     def worldbody(self) -> etree._Element:
         return self.section("worldbody")
+
+
+def section(root: etree._Element, tag: str) -> etree._Element:
+    """The top-level section ``tag`` of ``root``, created in Menagerie's order if missing."""
+    found = root.find(tag)
+    if found is not None:
+        return found
+    el = etree.Element(tag)
+    rank = SECTIONS.index(tag)
+    for existing in root:
+        if existing.tag in SECTIONS and SECTIONS.index(existing.tag) > rank:
+            existing.addprevious(el)
+            return el
+    root.append(el)
+    return el
 
 
 def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
@@ -657,16 +661,62 @@ def _attached(el: etree._Element) -> bool:
     return el.getparent() is not None
 
 
+def _kind(joint: etree._Element) -> str:
+    return "free" if joint.tag == "freejoint" else joint.get("type", "hinge")
+
+
+def joint_width(joint: etree._Element) -> int:
+    """Numbers of ``qpos`` a ``<joint>`` or ``<freejoint>`` takes."""
+    return {"free": 7, "ball": 4}.get(_kind(joint), 1)
+
+
+def joint_qpos0(joint: etree._Element) -> list[float]:
+    """Where MuJoCo starts a joint given by pos and quat: a free joint at its body's pose,
+    a ball at identity, a hinge or slide at its ``ref``."""
+    kind = _kind(joint)
+    if kind == "free":
+        body = joint.getparent()
+        assert body is not None
+        pose = body.get("pos", "0 0 0").split() + body.get("quat", "1 0 0 0").split()
+        return [float(v) for v in pose]
+    if kind == "ball":
+        return [1.0, 0.0, 0.0, 0.0]
+    return [float(joint.get("ref", "0"))]
+
+
+def joints(root: etree._Element) -> list[etree._Element]:
+    """Every joint of the world body in document order (MuJoCo's order for our output)."""
+    world = root.find("worldbody")
+    return [] if world is None else list(world.iter("joint", "freejoint"))
+
+
 def _joint_layout(root: etree._Element) -> list[tuple[str | None, int]]:
     """(name, qpos width) of each joint in document order (MuJoCo's order for emit's output)."""
-    world = root.find("worldbody")
-    if world is None:
-        return []
-    out = []
-    for el in world.iter("joint", "freejoint"):
-        kind = "free" if el.tag == "freejoint" else el.get("type", "hinge")
-        out.append((el.get("name"), {"free": 7, "ball": 4}.get(kind, 1)))
-    return out
+    return [(el.get("name"), joint_width(el)) for el in joints(root)]
+
+
+def _repad(
+    keys: list[etree._Element], layout: list, starts: list[tuple[str | None, list[float]]]
+) -> None:
+    """Re-pad ``keys``, written for the joints of ``layout``, to the joints ``starts``
+    (name, where it starts) now has: a joint of ``layout`` keeps its values, an added
+    one gets its start."""
+    widths = dict(layout)
+    for key in keys:
+        values = [float(x) for x in (key.get("qpos") or "").split()]
+        if len(values) != sum(widths.values()) or len(widths) != len(layout):
+            continue
+        old: dict[str | None, list[float]] = {}
+        pos = 0
+        for name, width in layout:
+            old[name] = values[pos : pos + width]
+            pos += width
+        new: list[float] = []
+        for name, start in starts:
+            kept = old.get(name)
+            new += kept if kept is not None and len(kept) == len(start) else start
+        if new != values:
+            key.set("qpos", fmt_vec(new))
 
 
 def _compile(
@@ -675,7 +725,7 @@ def _compile(
     """Compile the merged model without our keyframes; blame ``<mujoco>`` content for
     an error in it; re-pad our keyframes when joints were added. ``assembly``: an
     error is not blamed (parts are attached later) and keys are re-padded from the
-    document's poses (:func:`_repad_from_tree`)."""
+    document's poses (:func:`joint_qpos0`)."""
     import mujoco
 
     from .validate import _LOCK
@@ -697,70 +747,19 @@ def _compile(
             mujoco.set_mju_user_warning(previous)
     for key, parent, index in reversed(places):
         parent.insert(index, key)
-    if error is not None and assembly:
-        _repad_from_tree(ctx.root, keys, layout)
+    if error is not None and assembly:  # where MuJoCo would start each joint, read here
+        _repad(keys, layout, [(el.get("name"), joint_qpos0(el)) for el in joints(ctx.root)])
         return
     if error is not None:
         _blame(ctx, xml, error)
         log.debug("%s: merged model does not compile: %s", ctx.source, error)
         return  # not ours to report: validate will
-    widths = dict(layout)
-    for key in keys:
-        values = [float(x) for x in (key.get("qpos") or "").split()]
-        if len(values) != sum(widths.values()) or len(widths) != len(layout):
-            continue
-        old: dict[str, list[float]] = {}
-        pos = 0
-        for name, width in layout:
-            old[name] = values[pos : pos + width]
-            pos += width
-        new: list[float] = []
-        for j in range(m.njnt):
-            adr = int(m.jnt_qposadr[j])
-            width = {0: 7, 1: 4}.get(int(m.jnt_type[j]), 1)
-            kept = old.get(m.joint(j).name)
-            new += (
-                kept
-                if kept is not None and len(kept) == width
-                else m.qpos0[adr : adr + width].tolist()
-            )
-        if new != values:
-            key.set("qpos", fmt_vec(new))
-
-
-def _repad_from_tree(root: etree._Element, keys: list[etree._Element], layout: list) -> None:
-    """Re-pad ``keys`` without compiling: a joint of ``layout`` keeps its values, an
-    added one starts where MuJoCo would start it (a free joint at its body's pos and
-    quat, a ball at identity, a hinge or slide at its ``ref``)."""
-    world = root.find("worldbody")
-    if world is None:
-        return
-    widths = dict(layout)
-    for key in keys:
-        values = [float(x) for x in (key.get("qpos") or "").split()]
-        if len(values) != sum(widths.values()) or len(widths) != len(layout):
-            continue
-        old: dict[str, list[float]] = {}
-        pos = 0
-        for name, width in layout:
-            old[name] = values[pos : pos + width]
-            pos += width
-        new: list[float] = []
-        for el in world.iter("joint", "freejoint"):
-            kind = "free" if el.tag == "freejoint" else el.get("type", "hinge")
-            kept = old.get(el.get("name"))
-            if kept is not None:
-                new += kept
-            elif kind == "free":
-                body = el.getparent()
-                new += [float(v) for v in body.get("pos", "0 0 0").split()]
-                new += [float(v) for v in body.get("quat", "1 0 0 0").split()]
-            elif kind == "ball":
-                new += [1.0, 0.0, 0.0, 0.0]
-            else:
-                new.append(float(el.get("ref", "0")))
-        if new != values:
-            key.set("qpos", fmt_vec(new))
+    starts = []
+    for j in range(m.njnt):
+        adr = int(m.jnt_qposadr[j])
+        width = {0: 7, 1: 4}.get(int(m.jnt_type[j]), 1)
+        starts.append((m.joint(j).name, m.qpos0[adr : adr + width].tolist()))
+    _repad(keys, layout, starts)
 
 
 def _blame(ctx: _Context, xml: bytes, error: str) -> None:
