@@ -89,9 +89,8 @@ def fine(q: np.ndarray, step: float) -> np.ndarray:
     return np.vstack(out)
 
 
-def planner(m: mujoco.MjModel, seed: int = 3, ignore: tuple[int, ...] = ()) -> JointPlanner:
-    # a generous time limit: RRT* then stops on its iteration count, the same on any machine
-    return JointPlanner(m, [0, 1], VMAX, AMAX, seed=seed, time_limit=60, ignore_bodies=ignore)
+def planner(m: mujoco.MjModel, seed: int = 3, ignore: tuple[int, ...] = (), **kw) -> JointPlanner:
+    return JointPlanner(m, [0, 1], VMAX, AMAX, seed=seed, ignore_bodies=ignore, **kw)
 
 
 @pytest.fixture(scope="module")
@@ -150,6 +149,47 @@ def test_the_plan_is_deterministic_for_a_seed(around_the_post):
     again = planner(m).plan(full(m, START), GOAL)
     np.testing.assert_array_equal(again.path, around_the_post.path)
     np.testing.assert_array_equal(again.q, around_the_post.q)
+
+
+class _SlowMachine:
+    """``time`` as a machine 10,000 times slower than this one would see it: each reading
+    of the clock is 0.1 s after the one before."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def perf_counter(self) -> float:
+        self.now += 0.1
+        return self.now
+
+
+def test_the_plan_is_the_same_on_a_machine_far_slower_than_this_one(around_the_post, monkeypatch):
+    from urdf2mjcf.runner import plan as plan_module
+
+    assert around_the_post.iterations > 20  # RRT* read the clock at least that often
+    slow = _SlowMachine()
+    monkeypatch.setattr(plan_module, "time", slow)
+    m = arm()
+    again = planner(m).plan(full(m, START), GOAL)
+    assert slow.now > 2.0  # the old budget, 2 s of wall time, would have stopped it
+    assert again.iterations == around_the_post.iterations
+    np.testing.assert_array_equal(again.path, around_the_post.path)
+    np.testing.assert_array_equal(again.q, around_the_post.q)
+
+
+def test_a_move_with_no_path_in_its_budget_fails_naming_the_budget():
+    m = arm()
+    with pytest.raises(PlanningError, match="within its budget of 3 iterations"):
+        planner(m, max_iterations=3).plan(full(m, START), GOAL)
+
+
+def test_the_wall_clock_safety_net_says_it_stopped_the_move(monkeypatch):
+    from urdf2mjcf.runner import plan as plan_module
+
+    monkeypatch.setattr(plan_module, "time", _SlowMachine())
+    m = arm()
+    with pytest.raises(PlanningError, match=r"wall-clock safety net of 1 s .* not the seed's"):
+        planner(m, wall_limit=1.0).plan(full(m, START), GOAL)
 
 
 def test_a_free_straight_line_is_the_path():
@@ -304,7 +344,7 @@ def test_the_robot_plans_from_the_bench_seat_to_stow_in_the_default_facility(tmp
         qpos[m.joint("lift_middle").qposadr] = 0.5 * q[1]  # the lift's equality, by hand
         return penetrations(m, qpos, robot)
 
-    mv = JointPlanner(m, joints, vmax, amax, seed=1, time_limit=60).plan(start, stow)
+    mv = JointPlanner(m, joints, vmax, amax, seed=1).plan(start, stow)
     np.testing.assert_allclose(mv.q[0], approach, atol=1e-9)
     np.testing.assert_allclose(mv.q[-1], stow, atol=1e-9)
     for q in fine(mv.q, 0.01):

@@ -47,8 +47,8 @@ class StepResult:
     duration: float  # simulated seconds
     contacts: list[str] = field(default_factory=list)
     message: str = ""
-    # a planned joint move: planner ("straight" or "RRTstar"), planning_time_s,
-    # path_length (joint space, rad and m mixed), duration_s
+    # a planned joint move: planner ("straight" or "RRTstar"), iterations (RRT*'s),
+    # planning_time_s (wall), path_length (joint space, rad and m mixed), duration_s
     plan: dict | None = None
 
 
@@ -324,6 +324,7 @@ class Demo:
         duration = self.ctl.play(move.times, move.q)
         self.last_plan = {
             "planner": move.planner,
+            "iterations": move.iterations,
             "planning_time_s": round(move.planning_time_s, 4),
             "path_length": round(move.path_length, 4),
             "duration_s": round(duration, 3),

@@ -28,9 +28,12 @@ the move; its contacts with that body's subtree (the gripper holding it) are all
    ``resolution``. Its one tree is rooted at the more confined end (fewer free states
    among OPENNESS_SAMPLES seeded ones within OPENNESS_RADIUS: a pose in a narrow place is
    far easier to leave than to enter; the path is reversed when rooted at the goal). It
-   stops ITERATIONS iterations after its first solution (the same path for a seed on any
-   machine) or at ``time_limit`` seconds from the start of the move; then OMPL's
-   ``PathSimplifier`` (rope shortcutting, vertex reduction; seeded too);
+   stops ITERATIONS iterations after its first solution, or fails after ``max_iterations``
+   iterations without one: budgets of work, never of time, so a seed gives the same path
+   and the same verdict on a quiet machine and on a loaded one. ``wall_limit`` seconds
+   from the start of the move is only a safety net, far above any normal move, and a move
+   stopped by it fails saying so; then OMPL's ``PathSimplifier`` (rope shortcutting,
+   vertex reduction; seeded too);
 3. TOPP-RA time-optimal timing, from rest to rest, of a cubic spline through the path
    densified to DENSE spacing (the spline keeps to the checked segments), under
    ``|qd| <= vmax`` and ``|qdd| <= amax`` per joint. TOPP-RA holds the limits at its grid
@@ -43,7 +46,8 @@ pair of bodies that are not already that close at the start or the goal, so that
 motion between two checks does not graze an obstacle.
 
 Failures raise ``PlanningError`` (a ``ConversionError``): the start or goal in collision
-(naming the two bodies and geoms), out of range, or no path within the time limit.
+(naming the two bodies and geoms), out of range, or no path within the iteration budget
+(or, on a machine far too slow, the wall-clock safety net).
 """
 
 from __future__ import annotations
@@ -67,6 +71,14 @@ SAMPLE_DT = 0.01
 """Spacing of the timed trajectory's samples (s)."""
 ITERATIONS = 25
 """RRT* iterations once a solution exists (the planner refines it meanwhile)."""
+MAX_ITERATIONS = 5000
+"""RRT* iterations a move may take to find its first solution. The facility's blocked
+move (approach_bench_seat) finds one after 90 on every seed tried, in about 0.2 s on an
+idle 2-core machine; a move with no path fails after this many (about 10 s there)."""
+WALL_LIMIT = 600.0
+"""Seconds a move may plan before it fails whatever its budget: a safety net against a
+machine stalled far beyond any normal load (a normal move takes well under 1 s), never
+what decides a move; hitting it is reported as such."""
 DENSE = 0.05
 """Waypoint spacing along each path segment for the timing spline (joint-space norm)."""
 HINGE, SLIDE, FREE = (
@@ -112,6 +124,9 @@ class PlannedMove:
     """True when the straight joint interpolation was already collision-free."""
     planner: str
     """``"straight"`` or ``"RRTstar"``: what produced the path."""
+    iterations: int = 0
+    """RRT*'s iterations (0 for a straight path): the work the move took, the same for a
+    seed on any machine."""
 
 
 @dataclass(frozen=True)
@@ -171,7 +186,8 @@ class JointPlanner:
         allowed_pairs: Iterable[tuple[int, int]] = (),
         margin: float = 0.0,
         seed: int = 0,
-        time_limit: float = 2.0,
+        max_iterations: int = MAX_ITERATIONS,
+        wall_limit: float = WALL_LIMIT,
         resolution: float = 0.01,
         link_of_geom: Callable[[int], str] | None = None,
     ) -> None:
@@ -204,7 +220,10 @@ class JointPlanner:
         self.followers = self._followers()
         self.margin = float(margin)
         self.seed = int(seed)
-        self.time_limit = float(time_limit)
+        self.max_iterations = int(max_iterations)
+        if self.max_iterations < 1:
+            raise ValueError("max_iterations must be at least 1")
+        self.wall_limit = float(wall_limit)
         self.resolution = float(resolution)
         self.robot = _subtree(m, m.jnt_bodyid[self.joints])
         self._geom_body = m.geom_bodyid.copy()
@@ -434,15 +453,17 @@ class JointPlanner:
         self._limit_plan = self._limit_free + self._pads((start, goal))
         try:
             straight = self._segment_free(start, goal)
+            iterations = 0
             if straight:
                 path, planner = np.vstack([start, goal]), "straight"
             else:
                 # RRT* grows one tree: root it at the more confined end (a pose in a
                 # narrow place is reached far more easily by leaving it than by entering)
                 if self._openness(goal) < self._openness(start):
-                    path = self._rrtstar(goal, start, t0)[::-1].copy()
+                    path, iterations = self._rrtstar(goal, start, t0)
+                    path = path[::-1].copy()
                 else:
-                    path = self._rrtstar(start, goal, t0)
+                    path, iterations = self._rrtstar(start, goal, t0)
                 planner = "RRTstar"
         finally:
             self._limit_plan = None
@@ -457,7 +478,9 @@ class JointPlanner:
             times[-1],
             elapsed,
         )
-        return PlannedMove(times, q, qd, path, elapsed, path_length(path), straight, planner)
+        return PlannedMove(
+            times, q, qd, path, elapsed, path_length(path), straight, planner, iterations
+        )
 
     def _in_range(self, what: str, q: np.ndarray, tol: float) -> np.ndarray:
         out = (q < self.lower - tol) | (q > self.upper + tol)
@@ -490,7 +513,10 @@ class JointPlanner:
         hi = np.where(hinge, np.maximum(start, goal) + HINGE_SLACK, self.upper)
         return np.maximum(lo, self.lower), np.minimum(hi, self.upper)
 
-    def _rrtstar(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
+    def _rrtstar(
+        self, start: np.ndarray, goal: np.ndarray, t0: float
+    ) -> tuple[np.ndarray, int]:
+        """RRT*'s simplified path from ``start`` to ``goal`` and its iterations."""
         from ompl import util as ou
 
         level = ou.getLogLevel()
@@ -500,7 +526,9 @@ class JointPlanner:
         finally:
             ou.setLogLevel(level)
 
-    def _rrtstar_quiet(self, start: np.ndarray, goal: np.ndarray, t0: float) -> np.ndarray:
+    def _rrtstar_quiet(
+        self, start: np.ndarray, goal: np.ndarray, t0: float
+    ) -> tuple[np.ndarray, int]:
         from ompl import base as ob
         from ompl import geometric as og
         from ompl import util as ou
@@ -529,24 +557,40 @@ class JointPlanner:
         ss.setStartAndGoalStates(a, b)
         ss.setup()
         pdef = ss.getProblemDefinition()
-        deadline = t0 + self.time_limit
+        deadline = t0 + self.wall_limit
         first: list[int] = []
+        stalled: list[bool] = []
 
         def done() -> bool:
-            if time.perf_counter() > deadline:
-                return True
+            # OMPL asks once per iteration: the iteration counts decide, the clock only
+            # when the machine stalls far beyond any normal load
+            n = planner.numIterations()
             if not first:
                 # RRT* hands its solution to the problem definition only when it stops
                 if math.isfinite(planner.bestCost().value()):
-                    first.append(planner.numIterations())
-                return False
-            return planner.numIterations() >= first[0] + ITERATIONS
+                    first.append(n)
+                elif n >= self.max_iterations:
+                    return True
+            elif n >= first[0] + ITERATIONS:
+                return True
+            if time.perf_counter() > deadline:
+                stalled.append(True)
+                return True
+            return False
 
         ss.solve(ob.PlannerTerminationCondition(done))
+        iterations = planner.numIterations()
+        if stalled:
+            raise PlanningError(
+                f"RRT* was stopped by the wall-clock safety net of {self.wall_limit:g} s "
+                f"after {iterations} iterations (its budget: {self.max_iterations} "
+                "to a first solution): this machine is far too slow or loaded for the move; "
+                "its result is not the seed's"
+            )
         if not pdef.hasExactSolution():
             raise PlanningError(
-                f"no collision-free path found by RRT* within the time limit of "
-                f"{self.time_limit:g} s ({planner.numIterations()} iterations)"
+                f"no collision-free path found by RRT* within its budget of "
+                f"{self.max_iterations} iterations"
             )
         # OMPL's rope shortcutting (pulls the path taut along itself), then vertex
         # reduction (seeded): as short as simplifyMax's full loop on the facility's moves
@@ -559,7 +603,7 @@ class JointPlanner:
         states = sol.getStates()
         path = np.array([[s[i] for i in range(k)] for s in states])
         path[0], path[-1] = start, goal
-        return path
+        return path, iterations
 
     # ---- timing -----------------------------------------------------------------------
 
