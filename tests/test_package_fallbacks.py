@@ -370,3 +370,65 @@ def test_many_missing_references_scan_each_folder_once(tmp_path, monkeypatch):
         assert found.is_file() == (i < 3)
     assert calls == [robot.resolve()]
     assert len(r.notes) == 3
+
+
+def _with_mujoco(path: Path, mujoco_block: str) -> Path:
+    """``path``'s URDF with a ``<mujoco>`` block of the description's own."""
+    path.write_text(path.read_text().replace("</robot>", f"{mujoco_block}</robot>"))
+    return path
+
+
+@pytest.mark.parametrize("attr", ["meshdir", "assetdir"])
+def test_the_descriptions_own_compiler_meshdir_finds_its_meshes_as_mujoco_does(tmp_path, attr):
+    # URIs of a package nobody has, and a <mujoco><compiler meshdir> that says where the
+    # files are: MuJoCo's own import keeps the file names and looks there
+    mesh = _mesh(tmp_path / "robot" / "assets" / "link.stl")
+    uri = "package://vendor_robot_description/meshes/visual/link.stl"
+    src = _urdf(tmp_path / "robot" / "urdf" / "robot.urdf", uri, uri)
+    compiler = f'<compiler {attr}="../assets" strippath="true" discardvisual="false"/>'
+    _with_mujoco(src, f"<mujoco>{compiler}</mujoco>")
+    theirs = mujoco.MjModel.from_xml_path(str(src))  # the independent reading: both found
+    assert list(theirs.geom_type).count(mujoco.mjtGeom.mjGEOM_MESH) == 2
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 2)
+    assert "not found" not in proc.stderr and "dropped" not in proc.stderr, proc.stderr
+
+
+def test_a_relative_path_below_the_descriptions_meshdir_is_found(tmp_path):
+    mesh = _mesh(tmp_path / "robot" / "assets" / "visual" / "link.stl")
+    src = _urdf(tmp_path / "robot" / "urdf" / "robot.urdf", "visual/link.stl")
+    _with_mujoco(src, '<mujoco><compiler meshdir="../assets" discardvisual="false"/></mujoco>')
+    theirs = mujoco.MjModel.from_xml_path(str(src))
+    assert list(theirs.geom_type).count(mujoco.mjtGeom.mjGEOM_MESH) == 1
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 1)
+    assert "dropped" not in proc.stderr, proc.stderr
+
+
+def test_a_relative_path_one_folder_off_is_found_where_the_layout_keeps_meshes(tmp_path):
+    # urdf/robot.urdf names ./meshes/x.stl; the package ships meshes/ beside urdf/
+    mesh = _mesh(tmp_path / "robot" / "meshes" / "base.stl")
+    src = _urdf(tmp_path / "robot" / "urdf" / "robot.urdf", "./meshes/base.stl", "meshes/base.stl")
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 2)
+    lines = _warnings(proc, "one folder up")
+    assert len(lines) == 2 and all(str(mesh) in ln for ln in lines), proc.stderr
+    # a guess: --strict refuses it, naming the reference
+    proc = _convert(src, tmp_path / "strict" / "robot.xml", "--strict")
+    assert proc.returncode == 2 and "./meshes/base.stl" in proc.stderr, proc.stderr
+
+
+def test_a_mesh_found_by_name_in_a_sibling_meshes_folder(tmp_path):
+    mesh = _mesh(tmp_path / "robot" / "meshes" / "wheel.stl")
+    src = _urdf(tmp_path / "robot" / "urdf" / "robot.urdf", "parts/wheel.stl")
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    _assert_uses(out, mesh, 1)
+    assert len(_warnings(proc, "in the meshes folder one folder up")) == 1, proc.stderr

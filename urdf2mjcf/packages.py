@@ -37,6 +37,16 @@ a path that does not exist gets one more guess, a note like the others:
    path as written, for the mesh pass to report. Of several, the one whose
    folders end like the reference's (``.../iiwa14/visual/link_0.obj``) is used
    when it is the only one sharing that many.
+10. for a relative path (``./meshes/x.stl`` written from a ``urdf/`` folder), the same
+    path one folder up, then the file's name in a ``meshes`` folder beside the source or
+    one folder up: where a package's layout keeps its meshes. A note like the others.
+
+Before the guesses 9 and 10 (and for a ``package://`` URI whose package is not found),
+the folders the description's own ``<mujoco><compiler meshdir=... texturedir=...
+assetdir=...>`` names (relative to the source) are searched for the path as written,
+then for its file name alone, as MuJoCo's own URDF import finds it (without and with
+``strippath``): that is how the description says where its files are, so it is no
+guess.
 
 ``package://NAME`` with nothing after NAME, where NAME looks like a file
 (``package://wheel.obj``), is the file NAME inside the folder given for that
@@ -178,6 +188,21 @@ def _closest(found: list[Path], path: Path) -> list[Path]:
     scores = [shared(f) for f in found]
     best = max(scores)
     return [found[scores.index(best)]] if best > 0 and scores.count(best) == 1 else found
+
+
+def _in_folders(uri: str, folders: Sequence[Path]) -> Path | None:
+    """The file ``uri`` names, in the first of ``folders`` that holds it: a relative path
+    as written below the folder (MuJoCo's reading), else its file name alone (MuJoCo's
+    with ``strippath``, and the only reading of a ``package://`` URI)."""
+    name = unquote(uri.rstrip("/").rsplit("/", 1)[-1])
+    if not name or name in (".", ".."):
+        return None
+    plain = "://" not in uri and not uri.startswith("file:") and not Path(uri).is_absolute()
+    for folder in folders:
+        for candidate in ((folder / unquote(uri)) if plain else None, folder / name):
+            if candidate is not None and candidate.is_file():
+                return candidate
+    return None
 
 
 @dataclass(frozen=True)
@@ -355,7 +380,14 @@ class PackageResolver:
             element=element,
         )
 
-    def resolve(self, uri: str, *, element: str | None = None, base: Path | None = None) -> Path:
+    def resolve(
+        self,
+        uri: str,
+        *,
+        element: str | None = None,
+        base: Path | None = None,
+        asset_dirs: Sequence[Path] = (),
+    ) -> Path:
         """Resolve ``package://``, ``model://``, ``file://``, absolute and relative references.
 
         Odd forms seen in the wild: ``package:///pkg/x`` is ``package://pkg/x``
@@ -363,15 +395,53 @@ class PackageResolver:
         ``file://x`` (no third slash) are relative. Relative paths are
         relative to ``base`` (default: the source file's folder). A file under
         a known package need not exist; one found by a fallback does.
+        ``asset_dirs``: the folders the description's ``<mujoco><compiler>`` names
+        (absolute), searched for the file's name before any guess.
         """
         base = base or self._ancestors[0]  # the source's folder, resolved once
-        key = ("uri", uri, base)
+        key = ("uri", uri, base, tuple(asset_dirs))
         if key not in self._memo:
-            path = self._resolve(uri, element, base)
+            try:
+                path = self._resolve(uri, element, base)
+            except PackageNotFoundError:
+                found = _in_folders(uri, asset_dirs)
+                if found is None:
+                    raise
+                path = found
             if path.suffix and not path.exists():
-                path = self._same_name(uri, path, element, base)
+                path = (
+                    _in_folders(uri, asset_dirs)
+                    or self._same_name(uri, path, element, base)
+                )
+            if path.suffix and not path.exists():
+                path = self._layout(uri, path, element, base)
             self._memo[key] = path
         return self._memo[key]
+
+    # -- step 10: where a package's layout keeps its meshes -------------------
+
+    def _layout(self, uri: str, path: Path, element: str | None, base: Path) -> Path:
+        """Step 10: a relative reference found one folder up, or by its name in a
+        ``meshes`` folder beside the source or one folder up; else ``path``."""
+        if "://" in uri or uri.startswith("file:") or Path(uri).is_absolute():
+            return path
+        relative = Path(unquote(uri))
+        up = base.parent
+        for candidate, where in (
+            (up / relative, "one folder up"),
+            (base / "meshes" / relative.name, "in the meshes folder beside the source"),
+            (up / "meshes" / relative.name, "in the meshes folder one folder up"),
+        ):
+            if candidate != path and candidate.is_file():
+                self._guess(
+                    ("layout", uri, base),
+                    element,
+                    f"'{uri}' does not exist ({path}); using {candidate}, {where}, where "
+                    "the package's layout keeps it",
+                    fix="write the path where the file is",
+                )
+                return candidate
+        return path
 
     # -- step 9: the same file name elsewhere in the package ----------------
 

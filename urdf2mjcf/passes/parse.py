@@ -83,6 +83,10 @@ class _Reader:
         self.notes: list[Note] = []
         self.dropped_meshes = 0
         """Meshes dropped because their file could not be found (not with ``strict``)."""
+        self.mesh_dirs: tuple[Path, ...] = ()
+        self.texture_dirs: tuple[Path, ...] = ()
+        """Folders the description's ``<mujoco><compiler>`` names for its meshes and
+        textures, searched by file name as MuJoCo's URDF import does."""
 
     def fail(self, element: str, message: str) -> URDFError:
         return URDFError(message, file=self.source, element=element)
@@ -218,7 +222,9 @@ class _Reader:
             if 0.0 in scale:
                 return MeshRef(filename=filename, path=None, scale=scale)  # dropped by the caller
             try:
-                path = self.resolver.resolve(filename, element=f"{where} mesh '{filename}'")
+                path = self.resolver.resolve(
+                    filename, element=f"{where} mesh '{filename}'", asset_dirs=self.mesh_dirs
+                )
             except PackageNotFoundError as exc:
                 if self.cfg.strict:
                     raise
@@ -242,7 +248,9 @@ class _Reader:
         rgba = self.floats(color, "rgba", 4, where) if color is not None else None
         tex_path = None
         if texture is not None and texture.get("filename"):
-            tex_path = self.resolver.resolve(texture.get("filename"), element=f"{where} texture")
+            tex_path = self.resolver.resolve(
+                texture.get("filename"), element=f"{where} texture", asset_dirs=self.texture_dirs
+            )
         return Material(name=name, rgba=rgba, texture=tex_path)  # type: ignore[arg-type]
 
 
@@ -520,6 +528,22 @@ def _drop_dangling_mimics(joints: list[Joint]) -> tuple[list[Joint], list[Note]]
     return out, notes
 
 
+def _compiler_dirs(root: etree._Element, source: Path) -> tuple[tuple[Path, ...], ...]:
+    """The mesh and texture folders a description's ``<mujoco><compiler>`` names
+    (``meshdir``/``texturedir``, else ``assetdir``; relative to the source's folder), as
+    MuJoCo's own URDF import reads them."""
+    mesh: list[Path] = []
+    texture: list[Path] = []
+    for compiler in root.findall("mujoco/compiler"):
+        asset = compiler.get("assetdir")
+        for out, attr in ((mesh, "meshdir"), (texture, "texturedir")):
+            folder = compiler.get(attr) or asset
+            if folder:
+                path = Path(folder)
+                out.append(path if path.is_absolute() else source.parent / path)
+    return tuple(dict.fromkeys(mesh)), tuple(dict.fromkeys(texture))
+
+
 def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
     try:
         root = etree.fromstring(doc.xml, parser=etree.XMLParser(remove_comments=True))
@@ -529,6 +553,7 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
     if root.tag != "robot":
         raise URDFError(f"root element is <{root.tag}>, expected <robot>", file=doc.source)
     r = _Reader(doc.source, doc.resolver, cfg)
+    r.mesh_dirs, r.texture_dirs = _compiler_dirs(root, doc.source)
     named: dict[str, Material] = {}
     for mel in root.findall("material"):
         mat = r.material(mel, f"material '{mel.get('name')}'", named)
