@@ -328,23 +328,36 @@ def test_body_level_element_without_parent_is_an_error(tmp_path):
     assert 'needs parent="BODY"' in error.detail and "<worldbody>" in error.detail
 
 
-def test_parent_that_does_not_exist_is_an_error_listing_the_bodies(tmp_path):
-    error = raises(tmp_path, '<mujoco><body parent="hand" name="finger"/></mujoco>')
-    assert error.element == "mujoco body 'finger'"
-    assert error.detail == (
-        "parent body 'hand' does not exist; bodies: world, base, upper_arm, forearm"
-    )
+def test_a_parent_that_does_not_exist_drops_the_element_with_a_warning_listing_the_bodies(tmp_path):
+    _, after = convert(tmp_path, '<mujoco><body parent="hand" name="finger"/></mujoco>')
+    assert mujoco.mj_name2id(compiled(after), mujoco.mjtObj.mjOBJ_BODY, "finger") == -1
+    warned = _warned(after, "'hand'")
+    assert warned == [
+        "mujoco body 'finger': parent body 'hand' does not exist; this element of the "
+        "description's <mujoco> is dropped (bodies: world, base, upper_arm, forearm)"
+    ]
 
 
-def test_parent_that_was_fused_points_at_the_body_holding_its_site(tmp_path):
-    tool = '<joint name="tool_joint" type="fixed"><parent link="forearm"/><child link="tool"/><origin xyz="0 0 0.2"/></joint><link name="tool"/>'
-    path = write(tmp_path, tool + '<mujoco><site parent="tool" name="tcp"/></mujoco>')
+def test_a_parent_that_was_fused_puts_the_element_at_the_fused_links_place(tmp_path):
+    tool = '<joint name="tool_joint" type="fixed"><parent link="forearm"/><child link="tool"/><origin xyz="0.01 0 0.2" rpy="0 0 0.5"/></joint><link name="tool"/>'
+    path = write(tmp_path, tool + '<mujoco><site parent="tool" name="tcp" pos="0.1 0 0"/></mujoco>')
     model, before, resolver = emitted(path, emit.EmitConfig(fuse_fixed=True))
-    with pytest.raises(URDFError) as info:
-        extension.run(before, model, ExtensionConfig(resolver=resolver))
-    assert info.value.detail.endswith(
-        "; 'tool' is a site of body 'forearm': add to that body with pos"
-    )
+    after = extension.run(before, model, ExtensionConfig(resolver=resolver))
+    m = compiled(after)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    # where the tcp would be on an unfused tool link: the tool's site, then 0.1 m along its x
+    tool_site = m.site("tool")
+    expected = d.site_xpos[tool_site.id] + d.site_xmat[tool_site.id].reshape(3, 3) @ [0.1, 0, 0]
+    assert m.site_bodyid[m.site("tcp").id] == m.body("forearm").id
+    np.testing.assert_allclose(d.site_xpos[m.site("tcp").id], expected, atol=1e-12)
+    assert any("fused into body 'forearm'" in n.message for n in after.notes)
+
+
+def test_an_assembled_world_keeps_a_missing_parent_an_error(tmp_path):
+    model, before, resolver = emitted(write(tmp_path, '<mujoco><body parent="hand" name="f"/></mujoco>'))
+    with pytest.raises(URDFError, match="parent body 'hand' does not exist; bodies: world"):
+        extension.run(before, model, ExtensionConfig(resolver=resolver, assembly=True))
 
 
 # -- keyframes ----------------------------------------------------------------
@@ -539,12 +552,45 @@ def test_misspelt_attribute_is_reported_against_the_override(tmp_path):
     )
 
 
-def test_bad_reference_in_raw_content_is_reported_against_that_content(tmp_path):
-    error = raises(
-        tmp_path, '<mujoco><contact><exclude body1="base" body2="hand"/></contact></mujoco>'
+def _warned(result: emit.EmitResult, needle: str) -> list[str]:
+    return [f"{n.element}: {n.message}" for n in result.notes if n.kind == "warning" and needle in n.message]
+
+
+def test_content_naming_a_body_the_model_lacks_is_dropped_with_a_warning(tmp_path):
+    # a typo in one exclude: urdfdom reads the robot, and so do we (without that exclude)
+    xml = (
+        '<mujoco><contact><exclude body1="base" body2="hand"/>'
+        '<exclude body1="base" body2="forearm"/></contact>'
+        '<sensor><framepos objtype="body" objname="gripper"/><framepos objtype="body" objname="forearm"/></sensor>'
+        "</mujoco>"
     )
-    assert error.element == "mujoco contact exclude"
-    assert "body 'hand' not found" in error.detail
+    _, after = convert(tmp_path, xml)
+    m = compiled(after)
+    forearm = m.body("forearm").id
+    assert m.nexclude == 1 and {m.exclude_signature[0] >> 16, m.exclude_signature[0] & 0xFFFF} == {0 + m.body("base").id, forearm}
+    assert m.nsensor == 1 and m.sensor_objid[0] == forearm
+    hand, gripper = _warned(after, "'hand'"), _warned(after, "'gripper'")
+    assert len(hand) == 1 and hand[0].startswith("mujoco contact exclude: body2='hand' names no body")
+    assert "dropped" in hand[0] and "forearm" in hand[0]  # it lists the bodies there are
+    assert len(gripper) == 1 and gripper[0].startswith("mujoco sensor framepos: objname='gripper'")
+
+
+def test_content_naming_a_fused_link_names_the_body_it_was_fused_into(tmp_path):
+    tool = (
+        '<link name="tool0"/><joint name="flange" type="fixed"><parent link="forearm"/>'
+        '<child link="tool0"/><origin xyz="0 0 0.2"/></joint>'
+    )
+    xml = tool + '<mujoco><contact><exclude body1="base" body2="tool0"/></contact></mujoco>'
+    model, before, resolver = emitted(write(tmp_path, xml), emit.EmitConfig(fuse_fixed=True))
+    after = extension.run(before, model, ExtensionConfig(resolver=resolver))
+    m = compiled(after)
+    assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "tool0") == -1  # fused
+    assert m.nexclude == 1
+    assert {m.exclude_signature[0] >> 16, m.exclude_signature[0] & 0xFFFF} == {m.body("base").id, m.body("forearm").id}
+    assert any("fused into body 'forearm'" in n.message for n in after.notes)
+
+
+def test_bad_reference_in_raw_content_is_reported_against_that_content(tmp_path):
     error = raises(
         tmp_path,
         """<mujoco><body parent="forearm" name="tool"><joint/><geom size="0.01"/></body></mujoco>""",

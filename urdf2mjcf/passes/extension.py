@@ -184,6 +184,8 @@ class _Context:
     notes: list[Note]
     origin: dict[etree._Element, str] = field(default_factory=dict)
     """Element -> the ``<mujoco>`` content it came from (for MuJoCo's errors)."""
+    assembly: bool = False
+    """:attr:`ExtensionConfig.assembly`: names may be of parts attached later."""
 
     def error(self, message: str, element: str) -> URDFError:
         return URDFError(message, file=self.source, element=element)
@@ -223,12 +225,15 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
         resolver=cfg.resolver or PackageResolver(source=source),
         files=dict(result.files),
         notes=[],
+        assembly=cfg.assembly,
     )
     layout = _joint_layout(root)
     owned = {key: key.get("qpos") for key in root.iterfind("keyframe/key")}
     for ext in extensions:
         _apply(ctx, ext.xml)
 
+    if not ctx.assembly:  # an assembled world names the bodies of parts attached later
+        _follow_merges(ctx)
     keys = [k for k, q in owned.items() if q is not None and k.get("qpos") == q and _attached(k)]
     if cfg.check or (keys and _joint_layout(root) != layout):
         _compile(ctx, keys, layout, assembly=cfg.assembly)
@@ -240,6 +245,98 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
         qpos_home=_home(root, result.qpos_home),
         notes=result.notes + tuple(ctx.notes),
     )
+
+
+# -- names the <mujoco> content gives that the model merged or lacks ---------
+
+REFERENCES: dict[str, tuple[str, ...]] = {
+    "body": ("body1", "body2", "body", "targetbody"),
+    "site": ("site", "site1", "site2"),
+    "joint": ("joint", "joint1", "joint2", "jointinparent"),
+    "geom": ("geom1", "geom2"),
+    "tendon": ("tendon", "tendon1", "tendon2"),
+}
+"""Attributes that name a model element of a kind (MJCF's; ``objname`` by ``objtype``)."""
+OBJTYPES = {"body": "body", "xbody": "body", "site": "site", "joint": "joint", "geom": "geom",
+            "tendon": "tendon"}
+
+
+def _references(el: etree._Element) -> list[tuple[str, str]]:
+    """``(attribute, kind)`` of each name ``el`` gives of a model element."""
+    out = [(a, kind) for kind, attrs in REFERENCES.items() for a in attrs if a in el.attrib]
+    if el.tag in ("camera", "light") and "target" in el.attrib:
+        out.append(("target", "body"))
+    kind = OBJTYPES.get(el.get("objtype", ""))
+    if kind is not None and "objname" in el.attrib:
+        out.append(("objname", kind))
+    return out
+
+
+def _model_names(root: etree._Element) -> dict[str, set[str]]:
+    """The names of the model's bodies, sites, joints and geoms (in the worldbody) and
+    tendons."""
+    names: dict[str, set[str]] = {kind: set() for kind in REFERENCES}
+    names["body"].add("world")
+    world = root.find("worldbody")
+    for el in world.iter() if world is not None else ():
+        tag = "joint" if el.tag == "freejoint" else el.tag
+        if tag in names and el.get("name"):
+            names[tag].add(el.get("name"))  # type: ignore[arg-type]
+    for tendon in root.iterfind("tendon/*"):
+        if tendon.get("name"):
+            names["tendon"].add(tendon.get("name"))  # type: ignore[arg-type]
+    return names
+
+
+def _follow_merges(ctx: _Context) -> None:
+    """A ``<mujoco>`` element naming a link that was fused into its parent (a fixed
+    joint: the link left a site of its name in the body it joined) now names that body;
+    one naming a body, site, joint, geom or tendon the model lacks (a typo, a link that
+    is not there) is dropped, whole, with a warning naming it. Either way the robot
+    converts, as urdfdom reads the description: its ``<mujoco>`` block is ours to
+    apply, not a reason to refuse the robot."""
+    names = _model_names(ctx.root)
+    fused = {
+        s.get("name"): s.getparent().get("name") or "world"  # type: ignore[union-attr]
+        for s in ctx.worldbody.iter("site")
+        if s.get("name") and s.get("name") not in names["body"]
+    }
+    for el, origin in list(ctx.origin.items()):
+        top = el
+        while top.getparent() is not None and top.getparent() is not ctx.root:
+            top = top.getparent()  # type: ignore[assignment]
+        if top.getparent() is None or top.tag not in (*APPENDED, "worldbody"):
+            continue  # removed, or a merged section or default class: no names of elements
+        for attr, kind in _references(el):
+            name = el.get(attr, "")
+            if name in names[kind]:
+                continue
+            if kind == "body" and name in fused:
+                el.set(attr, fused[name])
+                ctx.notes.append(
+                    Note(
+                        "info",
+                        origin,
+                        f"{attr}='{name}' names a link fused into body '{fused[name]}' "
+                        "(a fixed joint): it names that body",
+                    )
+                )
+                continue
+            item = el  # in a section, its whole element goes (a tendon with a bad site)
+            while top.tag != "worldbody" and item.getparent() is not top:
+                item = item.getparent()  # type: ignore[assignment]
+            item.getparent().remove(item)  # type: ignore[union-attr]
+            known = _names(sorted(names[kind]))
+            ctx.notes.append(
+                Note(
+                    "warning",
+                    ctx.origin.get(item, origin),
+                    f"{attr}='{untrusted.excerpt(name, 80)}' names no {kind} of the model; "
+                    f"this element of the description's <mujoco> is dropped "
+                    f"({'bodies' if kind == 'body' else kind + 's'}: {known})",
+                )
+            )
+            break
 
 
 # -- applying one <mujoco> element -------------------------------------------
@@ -579,10 +676,16 @@ def _add_body_level(ctx: _Context, src: etree._Element) -> None:
         )
     el = copy.deepcopy(src)
     del el.attrib["parent"]
-    _add_to_body(ctx, _find_body(ctx, parent, origin), el, origin)
+    body = _find_body(ctx, parent, origin)
+    if body is not None:
+        _add_to_body(ctx, body, el, origin)
 
 
-def _find_body(ctx: _Context, name: str, origin: str) -> etree._Element:
+def _find_body(ctx: _Context, name: str, origin: str) -> etree._Element | None:
+    """The body called ``name``; for a link fused into its parent (a fixed joint: it left
+    a site of its name), a frame at that site in the body it joined; else None, with a
+    warning that the element is dropped (an error in an assembled world, whose parts
+    are attached later)."""
     world = ctx.worldbody
     if name == "world":
         return world
@@ -590,13 +693,36 @@ def _find_body(ctx: _Context, name: str, origin: str) -> etree._Element:
     for body in world.iter("body"):
         if body.get("name") == name:
             return body
-    known = _names(["world", *(b for b in bodies if b)])
-    message = f"parent body '{name}' does not exist; bodies: {known}"
     site = next((s for s in world.iter("site") if s.get("name") == name), None)
-    if site is not None:  # a link fused into its parent (fuse_fixed) leaves a site
-        holder = site.getparent().get("name") or "world"  # type: ignore[union-attr]
-        message += f"; '{name}' is a site of body '{holder}': add to that body with pos"
-    raise ctx.error(message, origin)
+    if site is not None:
+        holder = site.getparent()
+        assert holder is not None
+        frame = etree.SubElement(holder, "frame")
+        for attr in ("pos", "quat"):
+            if site.get(attr) is not None:
+                frame.set(attr, site.get(attr, ""))
+        ctx.notes.append(
+            Note(
+                "info",
+                origin,
+                f"parent='{name}' names a link fused into body "
+                f"'{holder.get('name') or 'world'}' (a fixed joint): added there, in a frame "
+                "at the link's place",
+            )
+        )
+        return frame
+    known = _names(["world", *(b for b in bodies if b)])
+    message = f"parent body '{untrusted.excerpt(name, 80)}' does not exist"
+    if ctx.assembly:
+        raise ctx.error(f"{message}; bodies: {known}", origin)
+    ctx.notes.append(
+        Note(
+            "warning",
+            origin,
+            f"{message}; this element of the description's <mujoco> is dropped (bodies: {known})",
+        )
+    )
+    return None
 
 
 def _add_to_body(ctx: _Context, body: etree._Element, el: etree._Element, origin: str) -> None:
