@@ -14,7 +14,8 @@ is not ours. Two readers, after xacro (the description's own language):
   (``quat_xyzw`` origins, ``<capsule>``) is read beside it from the same elements,
   with urdfdom's rules (from version 1.1 on; both ``rpy`` and ``quat_xyzw`` is
   unreadable), quaternions by trimesh's transformations. A geometry yourdfpy does
-  not know (``<plane>``, a simulator's own) is a part without a shape.
+  not know (``<plane>``, a simulator's own), or a box, sphere or cylinder of zero
+  size (no volume), is a part without a shape.
 
 Where both read the file their frames are compared (:meth:`Reference.agreement`):
 they disagree only by a bug of one of them, and urdfdom, the spec's reference, is
@@ -476,12 +477,23 @@ def _for_yourdfpy(xml: bytes) -> tuple[bytes, list[tuple[tuple[str, ...], Any]]]
                 origin(where, el)
                 geometry = el.find("geometry")
                 shapes = [] if geometry is None else [c for c in geometry if isinstance(c.tag, str)]
-                if shapes and shapes[0].tag not in _YOURDFPY_SHAPES:
+                if shapes and (shapes[0].tag not in _YOURDFPY_SHAPES or _no_size(shapes[0])):
                     later.append((where, shapes[0]))
                     geometry.replace(shapes[0], etree.Element("sphere", radius="1"))
     if not later:
         return xml, []
     return etree.tostring(root), later
+
+
+def _no_size(shape: Any) -> bool:
+    """A box, sphere or cylinder with a zero dimension: no volume, so no shape (MuJoCo
+    has none of it either); a mesh's scale is the mesh figures' business."""
+    keys = {"box": ("size",), "sphere": ("radius",), "cylinder": ("radius", "length")}
+    try:
+        values = [float(v) for k in keys.get(shape.tag, ()) for v in shape.get(k, "1").split()]
+    except ValueError:
+        return False  # yourdfpy says what it cannot read
+    return 0.0 in values
 
 
 def _complete(urdf: Any, later: list[tuple[tuple[str, ...], Any]]) -> None:
@@ -499,7 +511,7 @@ def _complete(urdf: Any, later: list[tuple[tuple[str, ...], Any]]) -> None:
                 if where[2] == "inertial"
                 else getattr(link, f"{where[2]}s")[int(where[3])]
             )
-        if el.tag != "origin":  # a shape yourdfpy does not know: none, or a capsule
+        if el.tag != "origin":  # a shape yourdfpy does not know or of no size: none (or a capsule)
             geometry = yourdfpy.Geometry()
             if el.tag == "capsule":
                 geometry.capsule = CapsuleShape(  # type: ignore[attr-defined]
