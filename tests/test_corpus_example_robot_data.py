@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import pytest
 
-from tests.corpus import check_robot, example_robot_data_urdfs
+from tests.corpus import check_robot, example_robot_data_urdfs, urdfdom_error
+from urdf2mjcf.errors import ConversionError
 
 pytestmark = pytest.mark.slow
 
@@ -26,6 +27,11 @@ def test_corpus_has_all_69_urdfs():
 
 @pytest.mark.parametrize("urdf", URDFS, ids=[p.stem for p in URDFS])
 def test_robot_converts_and_matches_pinocchio(urdf, tmp_path):
+    if urdfdom_error(urdf) is not None:  # ur3.urdf: no name, no link: not a robot
+        with pytest.raises(ConversionError, match="has no <link>") as refused:
+            check_robot(urdf, tmp_path)
+        assert refused.value.file and not (tmp_path / "robot.xml").exists()
+        return
     result = check_robot(urdf, tmp_path)
     assert (tmp_path / "robot.xml").is_file() and (tmp_path / "scene.xml").is_file()
     assert result["bodies"] == result["links"] - (

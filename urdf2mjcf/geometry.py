@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Literal
 
 from .ir import RGBA, Box, Capsule, Cylinder, Geom, Geometry, Plane, Pose, Quat, Sphere
-from .transforms import canonical_quat, quat_from_rpy, quat_mul, vec3
+from .transforms import canonical_quat, pose_quat, quat_mul, vec3
 
 PLANE_GRID = 0.05
 """Grid spacing drawn on a plane, metres (MuJoCo needs one)."""
@@ -45,7 +45,7 @@ def primitive_geom(
         gtype, size = "plane", (*(0.5 * s for s in geometry.size), PLANE_GRID)
     else:
         raise TypeError(f"not a primitive: {geometry!r}")
-    quat = quat_from_rpy(origin.rpy)
+    quat = pose_quat(origin)
     if isinstance(geometry, Plane) and geometry.normal != (0.0, 0.0, 1.0):
         quat = canonical_quat(quat_mul(quat, _z_to(geometry.normal)))  # MuJoCo planes face +z
     return Geom(

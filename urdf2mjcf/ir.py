@@ -54,16 +54,25 @@ class UrdfDocument:
 
 @dataclass(frozen=True)
 class Pose:
-    """A URDF ``<origin>``: translation then fixed-axis roll, pitch, yaw."""
+    """A URDF ``<origin>``: translation then fixed-axis roll, pitch, yaw (or, from
+    URDF 1.1 on, a quaternion ``quat_xyzw``)."""
 
     xyz: Vec3 = (0.0, 0.0, 0.0)
     """(3,) float, metres."""
     rpy: Vec3 = (0.0, 0.0, 0.0)
-    """(3,) float, radians; R = Rz(yaw) @ Ry(pitch) @ Rx(roll)."""
+    """(3,) float, radians; R = Rz(yaw) @ Ry(pitch) @ Rx(roll). With ``quat`` set, the
+    same rotation as angles (exact but near pitch +-pi/2, where angles lose digits)."""
+    quat: Quat | None = None
+    """Unit (w, x, y, z), w >= 0, when the origin gave ``quat_xyzw`` (URDF 1.1): the
+    rotation itself, which :func:`urdf2mjcf.transforms.pose_quat` returns."""
 
     @property
     def is_identity(self) -> bool:
-        return self.xyz == (0.0, 0.0, 0.0) and self.rpy == (0.0, 0.0, 0.0)
+        return (
+            self.xyz == (0.0, 0.0, 0.0)
+            and self.rpy == (0.0, 0.0, 0.0)
+            and self.quat in (None, (1.0, 0.0, 0.0, 0.0))
+        )
 
 
 @dataclass(frozen=True)
@@ -198,6 +207,13 @@ class Limit:
     """N m or N; None when absent."""
     velocity: float | None = None
     """rad/s or m/s."""
+    acceleration: float | None = None
+    """rad/s^2 or m/s^2 (URDF 1.2); None when absent. MuJoCo does not enforce it: kept
+    for the report and planners."""
+    deceleration: float | None = None
+    """rad/s^2 or m/s^2 (URDF 1.2); urdfdom's default is ``acceleration``."""
+    jerk: float | None = None
+    """rad/s^3 or m/s^3 (URDF 1.2); None when absent."""
 
 
 @dataclass(frozen=True)
@@ -264,6 +280,8 @@ class Robot:
     """Top-level named materials."""
     extensions: tuple[Extension, ...] = ()
     """Top-level extension elements in document order."""
+    version: tuple[int, int] = (1, 0)
+    """``<robot version>`` (URDF 1.0, 1.1 or 1.2; 1.0 when absent)."""
 
     @cached_property
     def link_map(self) -> dict[str, Link]:

@@ -77,12 +77,32 @@ class Report:
             "notes": [
                 {"kind": n.kind, "element": n.element, "message": n.message} for n in self.notes
             ],
+            "motion_limits": self.motion_limits(),
             "certificate": (
                 self.certificate.to_dict()
                 if self.certificate is not None
                 else {"computed": False, "why": "no validation (--no-validate) and no --verify"}
             ),
         }
+
+    def motion_limits(self) -> dict[str, dict[str, float]]:
+        """URDF 1.2's acceleration, deceleration and jerk limits by joint: what MuJoCo does
+        not enforce, kept for planners (rad/s^2 and rad/s^3, or m/s^2 and m/s^3)."""
+        if self.model is None:
+            return {}
+        out = {}
+        for joint in self.model.robot.joints:
+            limit = joint.limit
+            if limit is None:
+                continue
+            given = {
+                k: v
+                for k in ("acceleration", "deceleration", "jerk")
+                if (v := getattr(limit, k)) is not None
+            }
+            if given:
+                out[joint.name] = given
+        return out
 
     def summary(self) -> str:
         lines = [

@@ -103,10 +103,26 @@ def rpy_to_matrix(rpy: Vec3) -> np.ndarray:
     )
 
 
+def quat_to_rpy(q: Quat) -> Vec3:
+    """Fixed-axis (roll, pitch, yaw) of the unit quaternion ``q``; pitch from atan2, so it
+    keeps its digits near +-pi/2, and at +-pi/2 exactly roll is 0 (yaw takes the turn)."""
+    m = quat_to_matrix(q)
+    cos_pitch = math.hypot(m[2, 1], m[2, 2])
+    pitch = math.atan2(-m[2, 0], cos_pitch)
+    if cos_pitch < 1e-12:  # gimbal lock: only yaw - roll (or yaw + roll) is defined
+        return 0.0, pitch + 0.0, math.atan2(-m[0, 1], m[1, 1]) + 0.0
+    return math.atan2(m[2, 1], m[2, 2]) + 0.0, pitch + 0.0, math.atan2(m[1, 0], m[0, 0]) + 0.0
+
+
+def pose_quat(pose: Pose) -> Quat:
+    """The rotation of a URDF origin: its quaternion (URDF 1.1) or that of its rpy."""
+    return pose.quat if pose.quat is not None else quat_from_rpy(pose.rpy)
+
+
 def pose_matrix(pose: Pose) -> np.ndarray:
     """(4, 4) homogeneous transform of a URDF origin."""
     t = np.eye(4)
-    t[:3, :3] = rpy_to_matrix(pose.rpy)
+    t[:3, :3] = rpy_to_matrix(pose.rpy) if pose.quat is None else quat_to_matrix(pose.quat)
     t[:3, 3] = pose.xyz
     return t
 

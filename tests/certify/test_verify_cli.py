@@ -54,7 +54,12 @@ def test_the_report_carries_the_certificate(demo):
         "passed", "failures",
     ):  # fmt: skip
         assert key in cert, key
-    assert cert["reference"]["implementation"] == "yourdfpy" and cert["reference"]["version"]
+    # pinocchio is installed (the test extra): urdfdom's frames are the reference, yourdfpy
+    # reads the parts, and the two agree on this robot
+    assert cert["reference"]["implementation"] == "urdfdom" and cert["reference"]["version"]
+    refs = cert["references"]
+    assert refs["frames"].startswith("urdfdom ") and refs["parts"].startswith("yourdfpy ")
+    assert refs["agreement"]["compared"] and refs["agreement"]["agree"]
     assert set(cert["frames"]) >= {
         "max_position_error_m",
         "max_rotation_error_rad",
@@ -71,7 +76,8 @@ def test_the_conversion_prints_its_certificate(demo, tmp_path):
     last = res.stdout.strip().splitlines()[-1]
     assert last.startswith("certificate: passed (frames "), res.stdout
     res = run("urdf2mjcf", str(DEMO), "-o", "v/robot.xml", "-v", cwd=tmp_path)
-    assert "certificate against yourdfpy" in res.stderr and "  frames     ok" in res.stderr
+    assert "certificate against urdfdom" in res.stderr and "  frames     ok" in res.stderr
+    assert "urdfdom and yourdfpy agree" in res.stderr
 
 
 def test_an_unaltered_model_passes(demo):

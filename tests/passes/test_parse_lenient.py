@@ -553,6 +553,7 @@ ZERO = Wild(
         "link 'arm' collision 2 <cylinder>",
         "link 'arm' collision 3 <mesh>",
         "link 'arm' collision 4 <capsule>",
+        "<capsule> is URDF 1.1 and this file declares version 1.0",
     ],
     setup=_mesh_setup,
 )

@@ -1,8 +1,9 @@
 """The fidelity certificate: a compiled MJCF model against its URDF description.
 
-The description is read by an independent implementation of URDF (yourdfpy,
-:mod:`.reference`), the model is compiled by MuJoCo from the files on disk, and
-the two are compared figure by figure: link frames at home and at random
+The description is read by independent implementations of URDF (urdfdom through
+pinocchio for the frames where it is installed, yourdfpy for its parts and
+otherwise: :mod:`.reference`), the model is compiled by MuJoCo from the files on
+disk, and the two are compared figure by figure: link frames at home and at random
 configurations within the limits (:mod:`.kinematics`), joint types, axes,
 anchors, limits and mimic couplings, masses and the centre of mass
 (:mod:`.mass`), the mass matrix and gravity torques against pinocchio where it
@@ -63,7 +64,8 @@ class Certificate:
     """The figures, what failed and what the model changed on purpose."""
 
     reference: str
-    """``"yourdfpy 0.0.60"``: the implementation that read the description."""
+    """``"urdfdom 6.0.0"`` or ``"yourdfpy 0.0.60"``: the implementation whose frames
+    the model is held to (the ``references`` section says who read what)."""
     tolerances: Tolerances
     sections: dict[str, Any] = field(default_factory=dict)
     changes: list[dict[str, Any]] = field(default_factory=list)
@@ -98,13 +100,18 @@ class Certificate:
         }
 
     def summary(self) -> str:
-        """One line: passed with the headline figures, or FAILED with the first failures."""
+        """One line: passed with the headline figures, or FAILED with the first failures;
+        where the two references disagree, which one the figures hold to."""
         if not self.computed:
-            return f"certificate: not computed ({self.why_not})"
+            return (
+                f"certificate: not computed: {self.why_not}; nothing checked the model "
+                "against the description"
+            )
+        disagreement = self.disagreement()
         if self.failures:
             shown = "; ".join(self.failures[:3])
             more = f"; and {len(self.failures) - 3} more" if len(self.failures) > 3 else ""
-            return f"certificate: FAILED: {shown}{more}"
+            return f"certificate: FAILED: {shown}{more}{disagreement}"
         f = self.sections.get("frames", {})
         m = self.sections.get("mass", {})
         n = len(self.changes)
@@ -112,7 +119,19 @@ class Certificate:
             f"certificate: passed (frames {f.get('max_position_error_m', 0):.1g} m / "
             f"{f.get('max_rotation_error_rad', 0):.1g} rad, mass {m.get('mjcf_kg', 0):.3f} kg = "
             f"{m.get('urdf_kg', 0) + m.get('added_kg', 0) - m.get('welded_kg', 0):.3f} kg, "
-            f"{n} change{'' if n == 1 else 's'})"
+            f"{n} change{'' if n == 1 else 's'}){disagreement}"
+        )
+
+    def disagreement(self) -> str:
+        """``; yourdfpy's frames differ from urdfdom's by 5.93 m (link 'x'): urdfdom
+        believed``, or "" where the references agree (or only one read the file)."""
+        agreement = self.sections.get("references", {}).get("agreement", {})
+        if agreement.get("agree", True):
+            return ""
+        return (
+            f"; yourdfpy's frames differ from {agreement['believed']}'s by "
+            f"{agreement['max_position_difference_m']:.3g} m (link '{agreement['link']}'): "
+            f"{agreement['believed']} believed (see the certificate's references)"
         )
 
     def _failed(self, section: str) -> bool:
@@ -170,6 +189,19 @@ class Certificate:
                 )
                 text = f"{len(items)} {'links' if name == 'collision' else 'checks'}, {bad} out"
             rows.append((name, text, "", self._failed(name)))
+        refs = s.get("references", {})
+        agreement = refs.get("agreement", {})
+        if agreement.get("compared"):
+            text = (
+                "urdfdom and yourdfpy agree"
+                if agreement["agree"]
+                else f"yourdfpy differs by {agreement['max_position_difference_m']:.3g} m at "
+                f"link '{agreement['link']}': {agreement['believed']} believed: {agreement['why']}"
+            )
+            rows.append(("references", text, "", False))
+        elif refs:
+            text = f"frames by {refs['frames']} ({agreement.get('why')})"
+            rows.append(("references", text, "", False))
         lines = [f"certificate against {self.reference}:"]
         for name, value, tol, failed in rows:
             verdict = "FAILED" if failed else "ok"
@@ -290,10 +322,16 @@ def _certify(
     seen = {c["element"] for c in listed}
     extra = joint_changes + mass_changes + changes_mod.massless_with_inertia(ref)
     listed += [c for c in extra if c["element"] not in seen]
+    vectors = [kinematics.config_vector(ref, kinematics.with_mimics(ref, c)) for c in configs]
+    references = {
+        **ref.readers(),
+        "agreement": ref.agreement(vectors, tol.frame_position_m, tol.frame_rotation_rad),
+    }
     return Certificate(
         reference=ref.implementation,
         tolerances=tol,
         sections={
+            "references": references,
             "frames": frames,
             "joints": joints,
             "mass": mass_sec,

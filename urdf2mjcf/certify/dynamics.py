@@ -21,6 +21,7 @@ import numpy as np
 
 from .kinematics import Match, set_qpos, with_mimics
 from .mass import LinkInertial
+from .reference import urdfdom_error, urdfdom_quiet
 
 log = logging.getLogger(__name__)
 
@@ -114,13 +115,17 @@ def dynamics_section(
         if link.name not in patch and link.inertial is not None and not link.inertial.mass
     )
     xml = patched_xml(mt.ref.document.xml, patch, drop)
-    try:
-        if mt.root_free is not None:
-            pm = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
-        else:
-            pm = pin.buildModelFromXML(xml)
-    except Exception as exc:  # urdfdom refuses what yourdfpy read
-        why = f"pinocchio cannot read the description: {' '.join(str(exc).split())[:200]}"
+    with urdfdom_quiet() as printed:  # urdfdom prints from C++: held back
+        try:
+            if mt.root_free is not None:
+                pm = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
+            else:
+                pm = pin.buildModelFromXML(xml)
+            failure = None
+        except Exception as exc:  # urdfdom refuses what yourdfpy read
+            failure = exc
+    if failure is not None:
+        why = f"urdfdom cannot read the description: {urdfdom_error(printed, failure)[:200]}"
         return {"computed": False, "why": why}, []
     pd = pm.createData()
     plan = _dof_plan(mt, pm)

@@ -1,4 +1,5 @@
-"""Link frames and joints: the description (yourdfpy) against a compiled MuJoCo model.
+"""Link frames and joints: the description (urdfdom's frames where pinocchio reads it,
+else yourdfpy's; yourdfpy's joints) against a compiled MuJoCo model.
 
 Every pose is taken in the root link's frame on both sides, so a model placed
 anywhere in its world (a hand-tuned one on a table, ours at the origin, a free
@@ -7,7 +8,7 @@ same name (or the name a :class:`NameMap` gives); a link the conversion fused
 into its parent (``--fuse-fixed``) is matched with the site of its name, which
 sits at its frame. A URDF joint value ``q`` is MuJoCo's ``qpos0 + q`` (its
 ``ref``), multi-dof joints (floating, planar) stay at their zero displacement,
-as yourdfpy's forward kinematics keeps them.
+as both references' forward kinematics keep them.
 """
 
 from __future__ import annotations
@@ -187,12 +188,17 @@ def with_mimics(ref: Reference, cfg: Mapping[str, float]) -> dict[str, float]:
     return out
 
 
-def reference_frames(ref: Reference, cfg: Mapping[str, float]) -> dict[str, np.ndarray]:
-    """yourdfpy's link frames (root frame) at ``cfg`` (other joints at 0)."""
+def config_vector(ref: Reference, cfg: Mapping[str, float]) -> np.ndarray:
+    """``cfg`` in yourdfpy's actuated-joint order (other joints at 0)."""
     values = np.zeros(len(ref.actuated_joints))
     for i, name in enumerate(ref.actuated_joints):
         values[i] = cfg.get(name, 0.0)
-    return ref.frames(values)
+    return values
+
+
+def reference_frames(ref: Reference, cfg: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """The reference's link frames (root frame) at ``cfg`` (other joints at 0)."""
+    return ref.frames(config_vector(ref, cfg))
 
 
 def set_qpos(mt: Match, d: Any, cfg: Mapping[str, float]) -> None:

@@ -28,7 +28,7 @@ from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note,
 from ..transforms import (
     IDENTITY_QUAT,
     mujoco_fullinertia,
-    quat_from_rpy,
+    pose_quat,
     split_transform,
     transform,
     vec3,
@@ -181,7 +181,7 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
         body = bodies[link]
         for joint in robot.child_joints.get(link, ()):
             child = bodies[joint.child]
-            child.pos, child.quat = vec3(joint.origin.xyz), quat_from_rpy(joint.origin.rpy)
+            child.pos, child.quat = vec3(joint.origin.xyz), pose_quat(joint.origin)
             child.joint = joint if joint.type != "fixed" else None
             if cfg.fuse_fixed and joint.type == "fixed" and joint.child not in keep:
                 _fuse(body, child)

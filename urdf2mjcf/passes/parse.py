@@ -10,11 +10,20 @@ each liberty one warning naming file and element (an error with ``strict``):
 extra numbers in a vector (the first N are used), ``lower > upper`` (the
 joint is unlimited), ``spherical``/``ball`` joints, ``<plane>`` and unknown
 geometry, zero-size shapes (dropped). Link frames are never changed.
+
+The URDF version is read as urdfdom 6 reads ``<robot version="x.y">`` (1.0 when
+absent; 1.0, 1.1 and 1.2 known, any other an error): from 1.1 on an origin may
+give its rotation as ``quat_xyzw`` instead of ``rpy`` (both is an error), which a
+1.0 file ignores with a warning; ``<capsule>`` is 1.1's (read in a 1.0 file too,
+as other simulators do, with a warning); 1.2's ``acceleration``, ``deceleration``
+and ``jerk`` joint limits are kept for the report (MuJoCo does not enforce them)
+and ignored, with a warning, in an older file.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -47,6 +56,7 @@ from ..ir import (
     Visual,
 )
 from ..packages import PackageResolver
+from ..transforms import canonical_quat, quat_to_rpy
 from ..untrusted import excerpt
 
 EXTENSION_TAGS = ("ros2_control", "transmission", "gazebo", "mujoco")
@@ -62,6 +72,10 @@ WORLD = "world"
 """The parent link name Drake and Gazebo use for the world frame."""
 JOINT_ALIASES = {"ball": "spherical"}
 """Joint type spellings other tools accept, read as ours (with a warning)."""
+VERSIONS = ((1, 0), (1, 1), (1, 2))
+"""The URDF versions urdfdom 6 reads, and so do we."""
+MOTION_LIMITS = ("acceleration", "deceleration", "jerk")
+"""URDF 1.2's joint limits beyond velocity (MuJoCo enforces none of them)."""
 
 
 @dataclass(frozen=True)
@@ -76,10 +90,18 @@ class ParseConfig:
 class _Reader:
     """Helpers that turn attribute text into numbers with precise errors."""
 
-    def __init__(self, source: Path, resolver: PackageResolver, cfg: ParseConfig = ParseConfig()):
+    def __init__(
+        self,
+        source: Path,
+        resolver: PackageResolver,
+        cfg: ParseConfig = ParseConfig(),
+        version: tuple[int, int] = (1, 0),
+    ):
         self.source = source
         self.resolver = resolver
         self.cfg = cfg
+        self.version = version
+        """The file's URDF version: what 1.1 and 1.2 add is read from a file that declares it."""
         self.notes: list[Note] = []
         self.dropped_meshes = 0
         """Meshes dropped because their file could not be found (not with ``strict``)."""
@@ -157,8 +179,31 @@ class _Reader:
         if el is None:
             return Pose()
         xyz = self.floats(el, "xyz", 3, where, (0.0, 0.0, 0.0))
+        xyz = tuple(v + 0.0 for v in xyz)
+        if el.get("quat_xyzw") is not None:
+            if self.version < (1, 1):
+                message = (
+                    "quat_xyzw is URDF 1.1 and this file declares version "
+                    f"{_version_text(self.version)}; ignored, as urdfdom ignores it "
+                    '(declare <robot version="1.1"> to use it)'
+                )
+                self.notes.append(Note("warning", f"{self.source}: {where} <origin>", message))
+            elif el.get("rpy") is not None:
+                raise self.fail(where, "<origin> has both rpy and quat_xyzw; give one of them")
+            else:
+                return Pose(xyz=xyz, rpy=quat_to_rpy(q := self.quaternion(el, where)), quat=q)  # type: ignore[arg-type]
         rpy = self.floats(el, "rpy", 3, where, (0.0, 0.0, 0.0))
-        return Pose(xyz=tuple(v + 0.0 for v in xyz), rpy=tuple(v + 0.0 for v in rpy))  # type: ignore[arg-type]
+        return Pose(xyz=xyz, rpy=tuple(v + 0.0 for v in rpy))  # type: ignore[arg-type]
+
+    def quaternion(self, el: etree._Element, where: str) -> tuple[float, float, float, float]:
+        """``quat_xyzw`` as a unit (w, x, y, z), normalised as urdfdom normalises it."""
+        x, y, z, w = self.floats(el, "quat_xyzw", 4, where)
+        if (x, y, z, w) == (0.0, 0.0, 0.0, 0.0):
+            self.liberty(
+                f"{where} <origin quat_xyzw>", "is zero; read as no rotation, as urdfdom reads it"
+            )
+            return (1.0, 0.0, 0.0, 0.0)
+        return canonical_quat((w, x, y, z))
 
     def geometry(self, el: etree._Element | None, where: str) -> Geometry | None:
         """The shape, or None when it is dropped (unknown or of zero size, with a warning)."""
@@ -176,6 +221,13 @@ class _Reader:
         if geometry is not None and _zero_size(geometry):
             self.liberty(f"{where} <{kind}>", "has zero size; dropped (MuJoCo needs size > 0)")
             return None
+        if isinstance(geometry, Capsule) and self.version < (1, 1):
+            self.liberty(
+                f"{where} <{kind}>",
+                "<capsule> is URDF 1.1 and this file declares version "
+                f"{_version_text(self.version)} (urdfdom drops it); read as a capsule, as "
+                "other simulators read it",
+            )
         if isinstance(geometry, Capsule) and geometry.length == 0.0 and geometry.radius > 0.0:
             self.liberty(f"{where} <{kind}>", "capsule of length 0 read as a sphere")
             return Sphere(radius=geometry.radius)
@@ -333,7 +385,27 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
             upper=r.optional(lel, "upper", where, LIMIT_MAGNITUDE),
             effort=r.optional(lel, "effort", where, LIMIT_MAGNITUDE),
             velocity=r.optional(lel, "velocity", where, LIMIT_MAGNITUDE),
+            **_motion_limits(lel, r, where),
         )
+        motion = [
+            f"{k} {getattr(limit, k):g}" for k in MOTION_LIMITS if getattr(limit, k) is not None
+        ]
+        if motion:
+            message = (
+                f"{', '.join(motion)} (URDF 1.2 limits) kept in the report's motion_limits; "
+                "MuJoCo does not enforce them"
+            )
+            r.notes.append(Note("info", where, message))
+        if (
+            r.version >= (1, 2)
+            and jtype in ("revolute", "prismatic")
+            and (limit.lower is None or limit.upper is None)
+        ):
+            r.liberty(
+                f"{where} <limit>",
+                "URDF 1.2 needs both lower and upper for a revolute or prismatic joint "
+                "(urdfdom refuses it); the missing one read as 0, as URDF 1.0 reads it",
+            )
         lo, hi = limit.lower or 0.0, limit.upper or 0.0  # URDF's defaults
         if jtype in ("revolute", "prismatic") and lo > hi:
             r.liberty(
@@ -368,6 +440,70 @@ def _joint(el: etree._Element, r: _Reader) -> Joint:
         dynamics=dynamics,
         mimic=mimic,
     )
+
+
+def _motion_limits(lel: etree._Element, r: _Reader, where: str) -> dict[str, float | None]:
+    """URDF 1.2's acceleration, deceleration (urdfdom: the acceleration when absent) and
+    jerk limits, each >= 0; in an older file ignored with a warning, as urdfdom does."""
+    given = [k for k in MOTION_LIMITS if lel.get(k) is not None]
+    if r.version < (1, 2):
+        if given:
+            them = "it" if len(given) == 1 else "them"
+            message = (
+                f"{', '.join(given)} {'is' if len(given) == 1 else 'are'} URDF 1.2 and this file "
+                f"declares version {_version_text(r.version)}; ignored, as urdfdom ignores "
+                f'{them} (declare <robot version="1.2"> to keep {them})'
+            )
+            r.notes.append(Note("warning", f"{r.source}: {where} <limit>", message))
+        return {}
+    out: dict[str, float | None] = {}
+    for key in MOTION_LIMITS:
+        value = r.optional(lel, key, where, LIMIT_MAGNITUDE)
+        if value is not None and value < 0:
+            raise r.fail(where, f"<limit {key}='{excerpt(lel.get(key), 40)}'> is negative")
+        out[key] = value
+    if out["deceleration"] is None:
+        out["deceleration"] = out["acceleration"]
+    return out
+
+
+def _version(root: etree._Element, source: Path) -> tuple[int, int]:
+    """``<robot version>`` as urdfdom 6 reads it: "MAJOR.MINOR" (each a C integer,
+    ``strtol``'s way), 1.0 when absent; a version it does not know is an error."""
+    text = root.get("version")
+    if text is None:
+        return (1, 0)
+    shown = excerpt(text, 40)
+
+    def fail(why: str) -> URDFError:
+        return URDFError(f"version '{shown}' {why}", file=source, element="robot")
+
+    # urdfdom's split on '.': empty pieces are kept, but not a trailing one
+    parts = text.split(".")
+    if parts and parts[-1] == "":
+        parts.pop()
+    if len(parts) != 2:
+        raise fail("is not of the form MAJOR.MINOR")
+    numbers = []
+    for part in parts:
+        match = re.fullmatch(r"[ \t\n\v\f\r]*([+-]?[0-9]+)", part)
+        if not part:
+            raise fail("has an empty field")
+        if match is None:
+            raise fail("is not of the form MAJOR.MINOR (two whole numbers)")
+        value = int(match.group(1))
+        if value < 0:
+            raise fail("is negative")
+        numbers.append(value)
+    version = (numbers[0], numbers[1])
+    if version not in VERSIONS:
+        known = ", ".join(_version_text(v) for v in VERSIONS)
+        raise fail(f"is not a URDF version urdfdom reads ({known})")
+    return version
+
+
+def _version_text(version: tuple[int, int]) -> str:
+    return f"{version[0]}.{version[1]}"
 
 
 def _zero_size(g: Geometry) -> bool:
@@ -552,7 +688,7 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
         raise InputError(f"malformed XML at line {line}: {exc.msg}", file=doc.source) from None
     if root.tag != "robot":
         raise URDFError(f"root element is <{root.tag}>, expected <robot>", file=doc.source)
-    r = _Reader(doc.source, doc.resolver, cfg)
+    r = _Reader(doc.source, doc.resolver, cfg, _version(root, doc.source))
     r.mesh_dirs, r.texture_dirs = _compiler_dirs(root, doc.source)
     named: dict[str, Material] = {}
     for mel in root.findall("material"):
@@ -560,6 +696,9 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
         named.setdefault(mat.name, mat)
     moving = _moving_links(root, cfg)
     links = [_link(el, r, named, el.get("name") in moving) for el in root.findall("link")]
+    if not links:  # urdfdom refuses it; an empty model would hide a wrong file
+        message = "has no <link>; a URDF describes at least one"
+        raise URDFError(message, file=doc.source, element="robot")
     joints = [_joint(el, r) for el in root.findall("joint")]
     links = _world_link(links, joints, r)
     _check_tree(links, joints, r)
@@ -567,8 +706,6 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
     notes = [Note("warning", "xacro", w) for w in doc.warnings] + list(doc.notes) + r.notes + notes
     # package fallbacks guessed while expanding xacro and resolving URIs above
     notes += [Note("warning", element, message) for element, message in doc.resolver.notes]
-    if not links:
-        notes.append(Note("warning", "robot", "has no links; the model is empty"))
     extensions = tuple(
         Extension(tag=el.tag, xml=etree.tostring(el, encoding="unicode"))
         for el in root
@@ -581,5 +718,6 @@ def run(doc: UrdfDocument, cfg: ParseConfig = ParseConfig()) -> Model:
         joints=tuple(joints),
         materials=tuple(named.values()),
         extensions=extensions,
+        version=r.version,
     )
     return Model(robot=robot, notes=tuple(notes))

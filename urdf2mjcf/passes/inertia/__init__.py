@@ -71,7 +71,6 @@ from ...transforms import (
     inertia_matrix,
     mujoco_fullinertia,
     pose_matrix,
-    rpy_to_matrix,
     transform,
     vec3,
 )
@@ -165,8 +164,8 @@ def _from_urdf(link: Link, robot: Robot, notes: list[Note]) -> BodyInertial | No
     if inertial.mass == 0:
         return None
     tensor = inertia_matrix(inertial.inertia)
-    if inertial.origin.rpy != (0.0, 0.0, 0.0):
-        r = rpy_to_matrix(inertial.origin.rpy)
+    if inertial.origin.rpy != (0.0, 0.0, 0.0) or inertial.origin.quat is not None:
+        r = pose_matrix(inertial.origin)[:3, :3]
         tensor = r @ tensor @ r.T
     return _checked(link.name, inertial.mass, inertial.origin.xyz, tensor, "urdf", notes)
 

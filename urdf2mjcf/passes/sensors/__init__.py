@@ -57,7 +57,7 @@ from ...transforms import (
     IDENTITY_QUAT,
     canonical_quat,
     pose_matrix,
-    quat_from_rpy,
+    pose_quat,
     quat_mul,
     split_transform,
     transform,
@@ -318,7 +318,7 @@ class _Builder:
         joint = self.robot.parent_joint.get(frame)
         quat = IDENTITY_QUAT
         if ft.frame == "parent" and joint is not None:
-            w, x, y, z = quat_from_rpy(joint.origin.rpy)
+            w, x, y, z = pose_quat(joint.origin)
             quat = (w, -x, -y, -z)  # parent axes seen from the child at zero configuration
             if joint.type != "fixed":
                 message = f"parent '{joint.parent}' axes are exact only at '{joint.name}' = 0"
