@@ -16,6 +16,7 @@ import base64
 import tempfile
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +43,7 @@ class LiveView:
         port: int = 0,
         browser: bool = True,
         what: str = "the run",
+        origins: Iterable[str] = (),
     ) -> None:
         import mujoco
 
@@ -53,7 +55,7 @@ class LiveView:
         mujoco.mj_saveModel(model, str(copy), None)
         self._sender: threading.Thread | None = None
         try:
-            self.studio = Studio(port=port, live=True)
+            self.studio = Studio(port=port, live=True, origins=origins)
         except BaseException:
             self._folder.cleanup()
             raise
