@@ -285,6 +285,8 @@ class _Handler(BaseHTTPRequestHandler):
         """http.server's own refusals (a bad request line, an unknown method, headers too
         long) in JSON, as ours are; what the client sent is not repeated."""
         self.close_connection = True
+        if self.request_version == "HTTP/0.9":  # no version read: answer with a status line
+            self.request_version = "HTTP/1.0"
         text = {
             400: "a bad HTTP request",
             408: "the request did not arrive in time",
