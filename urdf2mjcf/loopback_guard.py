@@ -39,6 +39,8 @@ TOKEN_PARAM = "token"
 """The query parameter that carries the run's token."""
 TOKEN_BYTES = 16
 """Random bytes of a run's token (``secrets.token_urlsafe``)."""
+QUERY_FIELDS = 64
+"""Fields of a request's query read to find the token, at most (more: no token)."""
 ORIGIN_MAX = 256
 """Characters of an ``--allow-origin`` value, at most."""
 FOXGLOVE_APP = "https://app.foxglove.dev"
@@ -145,7 +147,10 @@ class Guard:
         """Whether the request target's query carries the token."""
         if self.token is None or "?" not in target:
             return False
-        query = urllib.parse.parse_qs(target.split("?", 1)[1], max_num_fields=16)
+        try:
+            query = urllib.parse.parse_qs(target.split("?", 1)[1], max_num_fields=QUERY_FIELDS)
+        except ValueError:  # more fields than any page of ours sends
+            return False
         return any(_same(v, self.token) for v in query.get(TOKEN_PARAM, ()))
 
     def _token_in_cookie(self, cookies: Sequence[str]) -> bool:

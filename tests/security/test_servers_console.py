@@ -333,3 +333,88 @@ def test_a_thousand_idle_connections_print_nothing_and_the_console_serves_on(pai
         code = served.stop()
     assert code == 0
     assert served.stderr == "", served.stderr[:3000]
+
+
+@pytest.fixture(scope="module")
+def running(pair: Path):
+    """The console served in this process (the same server the command runs)."""
+    from urdf2mjcf.runner.rover import RoverSim
+    from urdf2mjcf.runner.rover.console import Console
+    from urdf2mjcf.runner.rover.console_sim import ConsoleSim
+
+    sim = RoverSim(pair)
+    with Console(ConsoleSim(sim, pace=2.0)) as c:
+        yield c
+
+
+def _json_values():
+    from hypothesis import strategies as st
+
+    numbers = st.one_of(
+        st.integers(min_value=-(10**60), max_value=10**60),
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.sampled_from(["1" + "0" * 4000, "1e400", "NaN", "-Infinity", "1e-400", "-0"]).map(
+            lambda t: _Raw(t)
+        ),
+    )
+    names = st.sampled_from(["rover", "wheels", "arm", "left", "right", "collector",
+                             "printer", "ur_elbow_joint", "ur_shoulder_pan_joint", "x"])  # fmt: skip
+    return st.recursive(
+        st.one_of(st.none(), st.booleans(), numbers, st.text(max_size=20), names),
+        lambda kids: st.one_of(
+            st.lists(kids, max_size=4), st.dictionaries(st.one_of(names, st.text(max_size=8)),
+                                                        kids, max_size=4)  # fmt: skip
+        ),
+        max_leaves=12,
+    )
+
+
+class _Raw(str):
+    """A number written as it is (JSON has no NaN; a client sends it anyway)."""
+
+
+def _dump(value: object) -> str:
+    if isinstance(value, _Raw):
+        return str(value)
+    if isinstance(value, float) and value != value:
+        return "NaN"
+    if isinstance(value, dict):
+        return "{" + ",".join(f"{json.dumps(str(k))}:{_dump(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ",".join(_dump(v) for v in value) + "]"
+    if isinstance(value, float) and value in (float("inf"), float("-inf")):
+        return "Infinity" if value > 0 else "-Infinity"
+    return json.dumps(value)
+
+
+def test_no_body_a_client_can_send_gets_an_internal_error(running):
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    bodies = st.one_of(
+        _json_values().map(lambda v: _dump(v).encode()),
+        st.fixed_dictionaries(
+            {"rover": st.sampled_from(["collector", "printer"]), "wheels": _json_values(),
+             "arm": _json_values()}  # fmt: skip
+        ).map(lambda v: _dump(v).encode()),
+        st.binary(max_size=64),
+    )
+
+    @settings(max_examples=300, deadline=None)
+    @given(st.sampled_from(["command", "estop", "release", "state", "nowhere"]), bodies)
+    def probe(path: str, body: bytes) -> None:
+        req = urllib.request.Request(running.address(path), data=body, method="POST")
+        try:
+            with urllib.request.urlopen(req, timeout=60) as r:
+                status, raw, kind = r.status, r.read(), r.headers["Content-Type"]
+        except urllib.error.HTTPError as e:
+            status, raw, kind = e.code, e.read(), e.headers["Content-Type"]
+        assert kind == "application/json" and status < 500, (status, raw[:300])
+        answer = json.loads(raw)
+        assert status == 200 or set(answer) == {"error"}
+
+    try:
+        probe()
+    finally:
+        running.sim.release()
+    assert running.sim.running and running.sim.error is None
