@@ -67,32 +67,34 @@ class Roster:
     ``/state`` with the run's token for as long as the test runs."""
 
     def __init__(self, served: Served) -> None:
-        from websockets.sync.client import connect
-
-        url = f"ws://localhost:{served.port}/state?sid=user&token={served.token}"
-        self.ws = connect(url, max_size=None, origin=f"http://localhost:{served.port}")
+        self.url = f"ws://localhost:{served.port}/state?sid=user&token={served.token}"
+        self.origin = f"http://localhost:{served.port}"
         self.viewers: list[int] = []
-        self.done = threading.Event()
+        self.done, self.ready = threading.Event(), threading.Event()
         self.thread = threading.Thread(target=self._read, daemon=True)
         self.thread.start()
+        assert self.ready.wait(60), "the user's page could not watch"
 
     def _read(self) -> None:
-        while not self.done.is_set():
-            try:
-                msg = self.ws.recv(timeout=0.5)
-            except TimeoutError:
-                continue
-            except Exception:  # noqa: BLE001 - the viewer closed
-                return
-            if isinstance(msg, str) and msg.startswith("viewers="):
-                self.viewers.append(int(msg.split(";")[0].split("=")[1]))
-            elif isinstance(msg, bytes):
-                self.ws.send("state_ack")
+        from websockets.sync.client import connect
+
+        with connect(self.url, max_size=None, origin=self.origin) as ws:  # type: ignore[arg-type]
+            self.ready.set()
+            while not self.done.is_set():
+                try:
+                    msg = ws.recv(timeout=0.5)
+                except TimeoutError:
+                    continue
+                except Exception:  # noqa: BLE001 - the viewer closed
+                    return
+                if isinstance(msg, str) and msg.startswith("viewers="):
+                    self.viewers.append(int(msg.split(";")[0].split("=")[1]))
+                elif isinstance(msg, bytes):
+                    ws.send("state_ack")
 
     def close(self) -> None:
         self.done.set()
         self.thread.join(5)
-        self.ws.close()
 
 
 @pytest.fixture
