@@ -19,7 +19,8 @@ we answer it:
   that address set (``HttpOnly``, ``SameSite=Strict``: a page of another site neither
   reads it nor has it sent).
 
-Nothing here prints; the reasons it gives name no part of the request.
+Nothing here prints; the reasons it gives name no part of the request. A server of
+ours to come asks the same :class:`Guard` before it answers anything.
 """
 
 from __future__ import annotations

@@ -32,7 +32,8 @@ PACE_MAX = 1000.0
 
 class LiveView:
     """The viewer of one run of ``model``/``data``: call :meth:`step` after every step,
-    :meth:`close` at the end."""
+    :meth:`close` at the end. ``origins``: those the viewer answers besides its own page
+    (``--allow-origin``)."""
 
     def __init__(
         self,
