@@ -91,11 +91,18 @@ class Lines:
         raise AssertionError(f"no line starting {start!r}; saw {self.seen}")
 
 
+def at(url: str, path: str) -> str:
+    """``path`` (``model``, ``state?sid=x``) of the viewer at ``url``, the address it
+    printed: with the run's token, as the page's own requests carry it."""
+    base, _, token = url.partition("?")
+    return base + path + (("&" if "?" in path else "?") + token if token else "")
+
+
 def served_model(url: str, tmp: Path) -> mujoco.MjModel:
     """The model the viewer serves to the browser, as MuJoCo loads it."""
     from mujoco.studio.web import state_payload
 
-    bundle = urllib.request.urlopen(url + "model", timeout=30).read()
+    bundle = urllib.request.urlopen(at(url, "model"), timeout=30).read()
     mjb, _textures = state_payload.parse_model_bundle(bundle)
     path = tmp / f"served-{time.monotonic_ns()}.mjb"
     path.write_bytes(mjb)
@@ -163,12 +170,12 @@ def test_view_serves_the_model_converts_again_on_change_and_keeps_the_last_good(
         assert out.wait_for("certificate: ").startswith("certificate: passed")
         line = out.wait_for("viewing ")
         url = line.split(" at ")[1].split(" ")[0]
-        assert url.startswith("http://localhost:") and url.endswith("/")
+        assert url.startswith("http://localhost:") and "/?token=" in url
 
         page = urllib.request.urlopen(url, timeout=30)
         assert page.status == 200 and b"<canvas" in page.read()
-        # loopback only: the Studio has no login, so no other address of the machine answers
-        port = int(url.rsplit(":", 1)[1].strip("/"))
+        # loopback only: no other address of the machine answers
+        port = int(url.split("/")[2].rsplit(":", 1)[1])
         other = _outward_address()
         if other is not None:
             with pytest.raises(OSError):

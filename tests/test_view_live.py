@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from tests.test_view import TIMEOUT, Lines, served_model
+from tests.test_view import TIMEOUT, Lines, at, served_model
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.view.live import LiveView
@@ -59,7 +59,7 @@ def _states(url: str, until: Any, limit: float = TIMEOUT) -> list[bytes]:
 
     got: list[bytes] = []
     deadline = time.monotonic() + limit
-    with connect(url.replace("http://", "ws://") + "state?sid=test", max_size=None) as ws:
+    with connect(at(url, "state?sid=test").replace("http://", "ws://"), max_size=None) as ws:
         while time.monotonic() < deadline and not until(got):
             try:
                 msg = ws.recv(timeout=1)

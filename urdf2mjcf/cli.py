@@ -24,6 +24,7 @@ from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from .command_runner import run_command
 from .errors import ConversionError
 from .ir import COLLISION_SHAPES, Note
+from .runner.live_options import allow_origin_option, allow_origin_param, check_allow_origin
 from .untrusted import printable
 
 if TYPE_CHECKING:
@@ -276,6 +277,7 @@ def _view(
     port: int,
     no_browser: bool,
     desktop: bool,
+    allow_origins: tuple[str, ...] = (),
     **kw: Any,
 ) -> None:
     """Convert SOURCE and show it in MuJoCo's browser viewer; convert again, and show the
@@ -289,6 +291,8 @@ def _view(
     from .cache import default_cache_dir
     from .view.watch import serve
 
+    if allow_origins and desktop:
+        raise click.UsageError("--allow-origin is for the browser viewer, not --desktop")
     configure_logging(0, False)
     options = api.make_options(
         args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"), **conversion_options(kw)
@@ -314,6 +318,7 @@ def _view(
         browser=not no_browser,
         desktop=desktop,
         cache=cache,
+        origins=allow_origins,
     )
 
 
@@ -337,6 +342,7 @@ view_command = click.Command(
             is_flag=True,
             help="MuJoCo's desktop viewer instead of the browser one (needs a display).",
         ),
+        allow_origin_param("the browser viewer"),
         *shared_params(),  # the converter's options, as 'urdf2mjcf' and 'batch' take them
     ],
     help=_view.__doc__,
@@ -492,6 +498,7 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
     help="Then show it in MuJoCo's browser viewer until Ctrl-C (with --demo: the demo's "
     "run, live).",
 )
+@allow_origin_option("--view")
 @click.option("-v", "--verbose", count=True, help="More detail (-vv for debug).")
 @quiet_option()
 @click.pass_context
@@ -508,6 +515,7 @@ def make_facility_command(
     cache_dir: Path | None,
     demo: bool,
     view: bool,
+    allow_origins: tuple[str, ...],
     verbose: int,
     quiet: bool,
 ) -> None:
@@ -519,6 +527,7 @@ def make_facility_command(
     from .facility import root as facility_root
     from .facility.recipe import load_recipe
 
+    check_allow_origin(allow_origins, view, "--view")
     configure_logging(verbose, quiet)
     with _Progress(enabled=not quiet and sys.stderr.isatty()) as progress:
         root = facility_root.find_root(root)
@@ -560,11 +569,13 @@ def make_facility_command(
     if demo:
         from .runner.cli import facility_demo_command
 
-        ctx.invoke(facility_demo_command, scene=report.output, view=view)
+        ctx.invoke(
+            facility_demo_command, scene=report.output, view=view, allow_origins=allow_origins
+        )
     if view:
         from .view.watch import show
 
-        show(report.scene, what=f"{parsed.name} ({report.scene})")
+        show(report.scene, what=f"{parsed.name} ({report.scene})", origins=allow_origins)
 
 
 def make_facility_main() -> None:

@@ -22,8 +22,9 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     # IK (mink), collision-free planning (ompl) and its time parameterisation (toppra),
     # AprilTags (cv2: drawn into a facility, detected by the demo), the trials' plot
     "sim": ("mink", "ompl", "toppra", "cv2", "matplotlib"),
-    # the live Foxglove stream (facility-demo --foxglove, rover-drive --foxglove)
-    "live": ("foxglove",),
+    # the live Foxglove stream (facility-demo --foxglove, rover-drive --foxglove): our own
+    # server of Foxglove's protocol over websockets (MuJoCo's viewer brings it too)
+    "live": ("websockets",),
 }
 """Extra name -> the modules it provides (import names, as pyproject.toml's extra installs
 them: cv2 is opencv-python-headless)."""

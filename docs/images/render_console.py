@@ -50,7 +50,7 @@ def main() -> None:
         sim.settle(0.5)
         with Console(ConsoleSim(sim, pace=1.0)) as console:
             cmd = {"rover": "collector", "wheels": {"left": 2.5, "right": 2.5}}
-            post(console.url + "command", {**cmd, "arm": {"ur_shoulder_pan_joint": 0.5}})
+            post(console.address("command"), {**cmd, "arm": {"ur_shoulder_pan_joint": 0.5}})
             with sync_playwright() as pw, tempfile.TemporaryDirectory() as profile:
                 browser = pw.chromium.launch_persistent_context(
                     profile,

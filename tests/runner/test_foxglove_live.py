@@ -36,7 +36,7 @@ websockets = pytest.importorskip("websockets")
 ROOT = Path(__file__).resolve().parents[2]
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
 SUBPROTOCOL = "foxglove.sdk.v1"
-"""What foxglove-sdk's server speaks (it refuses the older foxglove.websocket.v1)."""
+"""What the Foxglove app offers first (our server speaks the older foxglove.websocket.v1 too)."""
 DRIVE = ["--distance", "1", "--settle", "0.2"]
 TIMEOUT = 120.0
 
@@ -198,10 +198,10 @@ def test_streaming_changes_neither_the_run_nor_its_recording(live_drive: dict, m
     assert lines(res.output) == lines(live_drive["stdout"])
 
 
-def test_a_missing_foxglove_sdk_is_one_error_line(
+def test_a_missing_live_extra_is_one_error_line(
     mira: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
 ) -> None:
-    monkeypatch.setitem(sys.modules, "foxglove", None)  # import foxglove: ImportError
+    monkeypatch.setitem(sys.modules, "websockets", None)  # import websockets: ImportError
     report = tmp_path / "r.json"
     with pytest.raises(SystemExit) as exit:
         run_command(rover_drive_command, [str(mira), "--foxglove", "--report", str(report)])
@@ -209,7 +209,7 @@ def test_a_missing_foxglove_sdk_is_one_error_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [
         "error: rover-drive --foxglove needs the live extra: "
-        "pip install 'mjcf-forge[live]' (missing: foxglove)"
+        "pip install 'mjcf-forge[live]' (missing: websockets)"
     ]
     assert not report.exists()
 

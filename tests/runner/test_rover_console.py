@@ -67,7 +67,7 @@ def call(c: Console, path: str, body: Any = None, method: str | None = None, **h
     """(status, parsed JSON or raw bytes, headers) of a request; ``body``: JSON, or bytes
     sent as they are."""
     data = body if isinstance(body, bytes) else None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(c.url + path.lstrip("/"), data=data, method=method)
+    req = urllib.request.Request(c.address(path), data=data, method=method)
     if data is not None:
         req.add_header("Content-Type", "application/json")
     for k, v in headers.items():
@@ -321,7 +321,7 @@ def test_camera_images_are_renders_of_the_state_they_were_taken_at(console, gl_c
 def test_the_page_drives_the_rover_and_stops_it(console, tmp_path):
     with browser.page(1280, 900) as page:
         page.goto(console.url)
-        page.wait_for_function("document.querySelectorAll('#arm input').length == 6")
+        page.wait_for_function("() => document.querySelectorAll('#arm input').length == 6")
         assert page.eval_on_selector("#rover", "s => [...s.options].map(o => o.value)") == [
             "collector",
             "printer",
@@ -346,19 +346,21 @@ def test_the_page_drives_the_rover_and_stops_it(console, tmp_path):
         assert moved["arm"][PAN] == pytest.approx(pan, abs=0.05)
         # the page shows the cameras the rover has, as the API serves them
         page.wait_for_function(
-            "(imgs => imgs.length == 6 && imgs.every(i => i.dataset.frames >= 2))"
+            "() => (imgs => imgs.length == 6 && imgs.every(i => i.dataset.frames >= 2))"
             "([...document.querySelectorAll('#cameras img')])"
         )
         srcs = page.eval_on_selector_all("#cameras img", "imgs => imgs.map(i => i.dataset.camera)")
         assert srcs == call(console, "/rovers")[1]["collector"]["cameras"]
-        page.wait_for_function("document.getElementById('time').textContent != '-'")
+        page.wait_for_function("() => document.getElementById('time').textContent != '-'")
         page.screenshot(path=str(tmp_path / "console.png"))
         page.click("#estop")
         deadline = time.monotonic() + TIMEOUT
         while not all(r["estop"] for r in state(console)["rovers"].values()):
             assert time.monotonic() < deadline, "the stop button did nothing"
             time.sleep(0.05)
-        page.wait_for_function("document.getElementById('banner').textContent.includes('STOP')")
+        page.wait_for_function(
+            "() => document.getElementById('banner').textContent.includes('STOP')"
+        )
         page.click("#release")
         deadline = time.monotonic() + TIMEOUT
         while any(r["estop"] for r in state(console)["rovers"].values()):
@@ -381,8 +383,9 @@ def test_the_command_line_serves_until_sigterm_and_exits_0(pair):
     try:
         line = Lines(proc.stdout).wait_for("console at ")  # type: ignore[arg-type]
         url = line.split()[2]
-        assert url.startswith("http://127.0.0.1:") and url.endswith("/")
-        with urllib.request.urlopen(url + "state", timeout=TIMEOUT) as r:
+        assert url.startswith("http://127.0.0.1:") and "/?token=" in url
+        base, token = url.split("?")
+        with urllib.request.urlopen(f"{base}state?{token}", timeout=TIMEOUT) as r:
             assert set(json.load(r)["rovers"]) == {"collector", "printer"}
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(TIMEOUT) == 0

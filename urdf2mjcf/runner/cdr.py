@@ -4,7 +4,7 @@ The live Foxglove stream (:mod:`.foxglove_live`) sends the recording's messages 
 ROS 2 publisher does: little-endian CDR (XCDR1, as Fast DDS and Cyclone DDS write
 it), each value aligned to its size from the start of the payload after the 4-byte
 encapsulation header. The writer of ``mcap-ros2-support`` does the same but is the
-``ros`` extra; the stream needs only ``foxglove-sdk``. Definitions are the text
+``ros`` extra; the stream needs only ``websockets`` (the ``live`` extra). Definitions are the text
 :func:`.record.msgdef` makes (the type, then each type it uses after ``MSG: pkg/Name``).
 """
 

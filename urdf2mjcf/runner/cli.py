@@ -23,7 +23,7 @@ from ..cli_types import BoundedInt
 from ..limits import SEED_MAX
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
 from .executors import Kind, import_ray
-from .live_options import live_options
+from .live_options import check_allow_origin, live_options
 from .trial_options import trial_options
 
 if TYPE_CHECKING:
@@ -144,6 +144,7 @@ def facility_demo_command(
     pace: float,
     foxglove: int | None,
     foxglove_wait: bool,
+    allow_origins: tuple[str, ...] = (),
 ) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
     from .. import headless
@@ -183,6 +184,7 @@ def facility_demo_command(
         raise click.UsageError("--foxglove streams one run, not --trials")
     if foxglove_wait and foxglove is None:
         raise click.UsageError("--foxglove-wait needs --foxglove")
+    check_allow_origin(allow_origins, view or foxglove is not None, "--view or --foxglove")
     if foxglove is not None:
         from ..extras import require
 
@@ -234,7 +236,10 @@ def facility_demo_command(
                     record,
                     record_to.tmp if record_to else None,
                     pace if view else None,
-                    _Live(foxglove, pace, foxglove_wait) if foxglove is not None else None,
+                    _Live(foxglove, pace, foxglove_wait, allow_origins)
+                    if foxglove is not None
+                    else None,
+                    allow_origins,
                 )
             if report and plot_to is not None:
                 plot_outcomes(result["aggregate"], plot_to.tmp)
@@ -331,11 +336,12 @@ def _trials(run: TrialRun, seed: int, trials: int, frames: Path | None) -> tuple
 
 @dataclass(frozen=True)
 class _Live:
-    """``--foxglove PORT``, ``--pace``, ``--foxglove-wait``."""
+    """``--foxglove PORT``, ``--pace``, ``--foxglove-wait``, ``--allow-origin``."""
 
     port: int
     pace: float
     wait: bool
+    origins: tuple[str, ...] = ()
 
 
 def _once(
@@ -346,11 +352,13 @@ def _once(
     record_to: Path | None = None,
     pace: float | None = None,
     stream: _Live | None = None,
+    origins: tuple[str, ...] = (),
 ) -> tuple[dict, bool]:
     """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
     reserved temporary file) when given; with ``pace``, the run is shown live at that
-    pace (the view only reads the state); with ``stream``, the recording's messages are
-    served to Foxglove while it runs."""
+    pace (the view only reads the state; ``origins``: those its viewer answers besides
+    its own page); with ``stream``, the recording's messages are served to Foxglove
+    while it runs."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
@@ -359,7 +367,9 @@ def _once(
         from .foxglove_live import FoxgloveStream
 
         try:
-            foxglove = FoxgloveStream(fac.data, stream.port, pace=stream.pace, name=GENERATOR)
+            foxglove = FoxgloveStream(
+                fac.data, stream.port, pace=stream.pace, name=GENERATOR, origins=stream.origins
+            )
         except BaseException:
             demo.close()
             raise
@@ -393,7 +403,8 @@ def _once(
         if pace is not None:
             from ..view.live import LiveView
 
-            live = LiveView(fac.model, fac.data, pace=pace, what=f"facility-demo {fac.folder}")
+            what = f"facility-demo {fac.folder}"
+            live = LiveView(fac.model, fac.data, pace=pace, what=what, origins=origins)
             demo.sim.on_step.append(live.step)
         res = demo.run()
     except BaseException:

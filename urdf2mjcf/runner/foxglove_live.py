@@ -2,9 +2,10 @@
 
 The messages are the recording's (:class:`.record.Recorder` builds each once and hands
 it to every sink): the same topics, ROS 2 types and simulated-time stamps as
-``--record``. :class:`FoxgloveStream` is such a sink: it serves them through
-``foxglove-sdk``'s WebSocket server on 127.0.0.1, each topic a channel with the
-ROS 2 definition (``ros2msg``) and CDR payloads, as a ROS 2 bridge serves them, so
+``--record``. :class:`FoxgloveStream` is such a sink: it serves them through our
+Foxglove WebSocket server on 127.0.0.1 (:mod:`.foxglove_server`: only our own clients,
+a bounded number, each with a bounded queue), each topic a channel with the ROS 2
+definition (``ros2msg``) and CDR payloads, as a ROS 2 bridge serves them, so
 Foxglove's panels treat them as ROS 2 topics. After the start, a payload is encoded
 only while a client subscribes to its topic (and, through :meth:`wants`, the recorder
 builds no message and renders no camera for a stream alone that nobody watches). The
@@ -18,13 +19,14 @@ The stream only reads: the run does what it does without it. It paces the run
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from ..errors import OutputError
 from .cdr import encoder
+from .foxglove_server import FoxgloveServer, ServeError
 
-HOST = "127.0.0.1"
+HOST = FoxgloveServer.HOST
 """Only this machine: a remote Foxglove reaches it through an SSH tunnel."""
 DEFAULT_PORT = 8765
 """Foxglove's default for a WebSocket connection."""
@@ -39,7 +41,8 @@ class FoxgloveStream:
     """A WebSocket server streaming a :class:`.record.Recorder`'s messages of the run of
     ``data`` (its MjData): pass it as one of the recorder's ``sinks``, call :meth:`start`
     after the recorder's first step, :meth:`step` after every physics step (it paces the
-    run and tells clients the time) and :meth:`close` when the run ends."""
+    run and tells clients the time) and :meth:`close` when the run ends. ``origins``:
+    the web origins answered (``--allow-origin``; a client that is no web page is)."""
 
     def __init__(
         self,
@@ -48,28 +51,17 @@ class FoxgloveStream:
         *,
         pace: float | None = 1.0,
         name: str = "urdf2mjcf",
+        origins: Iterable[str] = (),
     ) -> None:
-        import foxglove
-        from foxglove.websocket import Capability
-
-        self._foxglove = foxglove
         self.d, self.pace = data, pace
-        # A context of our own: nothing else logged in this process reaches the server.
-        self._context = foxglove.Context()
         try:
-            self._server = foxglove.start_server(
-                name=name,
-                host=HOST,
-                port=port,
-                context=self._context,
-                capabilities=[Capability.Time],
-            )
-        except Exception as exc:  # the port is taken, or not ours to bind
+            self._server = FoxgloveServer(port, name=name, origins=origins)
+        except ServeError as exc:  # the port is taken, or not ours to bind
             raise OutputError(
-                f"cannot serve on {HOST}:{port}: {exc}", element="--foxglove"
+                f"cannot serve on {HOST}:{port}: {exc.strerror}", element="--foxglove"
             ) from None
-        self.port = int(self._server.port)
-        self._channels: dict[str, Any] = {}
+        self.port = self._server.port
+        self._channels: dict[str, int] = {}
         self._encoders: dict[str, Callable[[Any], bytes]] = {}
         self._first: dict[str, tuple[bytes, int]] = {}
         self._started = False
@@ -83,7 +75,7 @@ class FoxgloveStream:
     def address(self) -> str:
         return f"ws://{HOST}:{self.port}"
 
-    def _channel(self, topic: str, datatype: str) -> Any:
+    def _channel(self, topic: str, datatype: str) -> int:
         ch = self._channels.get(topic)
         if ch is None:
             from .record import msgdef  # mujoco: not for the command line's --help
@@ -91,12 +83,7 @@ class FoxgloveStream:
             definition = msgdef(datatype)
             if datatype not in self._encoders:
                 self._encoders[datatype] = encoder(datatype, definition)
-            schema = self._foxglove.Schema(
-                name=datatype, encoding="ros2msg", data=definition.encode()
-            )
-            ch = self._foxglove.Channel(
-                topic, schema=schema, message_encoding="cdr", context=self._context
-            )
+            ch = self._server.add_channel(topic, "cdr", datatype, definition, "ros2msg")
             self._channels[topic] = ch
         return ch
 
@@ -107,10 +94,10 @@ class FoxgloveStream:
             # The start, kept for a client that subscribes while start() waits.
             payload = self._encoders[datatype](msg)
             self._first[topic] = (payload, ns)
-            ch.log(payload, log_time=ns)
-        elif ch.has_sinks():
-            ch.log(self._encoders[datatype](msg), log_time=ns)
-            self.sent += 1
+            self._server.log(ch, payload, ns)
+        elif self._server.watched(ch):
+            if self._server.log(ch, self._encoders[datatype](msg), ns):
+                self.sent += 1
 
     def wants(self, prefix: str) -> bool:
         """Whether a client subscribes to a topic under ``prefix`` (before the start:
@@ -119,7 +106,9 @@ class FoxgloveStream:
         if not self._started:
             return True
         return any(
-            ch.has_sinks() for topic, ch in self._channels.items() if topic.startswith(prefix)
+            self._server.watched(ch)
+            for topic, ch in self._channels.items()
+            if topic.startswith(prefix)
         )
 
     def step(self) -> None:
@@ -143,20 +132,16 @@ class FoxgloveStream:
         """The run begins; with ``wait``, once a client subscribes to a topic (it then
         gets the start's message on every topic it subscribed to)."""
         if wait:
-            while not any(ch.has_sinks() for ch in self._channels.values()):
+            while not any(self._server.watched(ch) for ch in self._channels.values()):
                 time.sleep(POLL)
             time.sleep(POLL)  # a client subscribes to its topics one after another
             for topic, (payload, ns) in self._first.items():
-                ch = self._channels[topic]
-                if ch.has_sinks():
-                    ch.log(payload, log_time=ns)
+                if self._server.log(self._channels[topic], payload, ns):
                     self.sent += 1
         self._first.clear()
         self._started = True
 
     def close(self) -> None:
         """Stop the server (clients see the connection close)."""
-        for ch in self._channels.values():
-            ch.close()
         self._channels.clear()
         self._server.stop()

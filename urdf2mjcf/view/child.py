@@ -1,7 +1,8 @@
 """The viewer process: MuJoCo Studio, driven line by line through stdin.
 
-Run as ``python -m urdf2mjcf.view.child [--desktop] [--live] [--port N] [--browser]``
-by :mod:`urdf2mjcf.view.studio`. Commands (one per line on stdin):
+Run as ``python -m urdf2mjcf.view.child [--desktop] [--live] [--port N] [--browser]
+[--allow-origin ORIGIN]...`` by :mod:`urdf2mjcf.view.studio`. Commands (one per line
+on stdin):
 
 ``load PATH``    load a model file (MJCF, MJB); answers ``loaded PATH`` or ``failed PATH``
 ``log LEVEL MSG`` a line for the page's console (``info``, ``warning`` or ``error``: the
@@ -10,9 +11,13 @@ by :mod:`urdf2mjcf.view.studio`. Commands (one per line on stdin):
                  base64) to show; no answer
 end of input     close the viewer and exit
 
-Answers go to stdout, one line each: first ``url http://localhost:PORT/`` (the browser
-viewer) or ``ready`` (the desktop viewer), or ``error MESSAGE`` and exit 1. Everything
-MuJoCo Studio prints itself goes to stderr.
+Answers go to stdout, one line each: first ``url http://localhost:PORT/?token=TOKEN``
+(the browser viewer, with this run's token) or ``ready`` (the desktop viewer), or
+``error MESSAGE`` and exit 1. Everything MuJoCo Studio prints itself goes to stderr.
+
+The browser viewer answers only our own pages (:mod:`.studio_guard`: loopback ``Host``,
+our origin or one named with ``--allow-origin``, the token), and loads only the files
+``load`` named.
 
 Without ``--live`` the Studio steps the model itself (its Run, Pause and Reset work, as
 in ``mujoco-studio``); with ``--live`` nothing steps it: it shows the states it is sent.
@@ -31,6 +36,9 @@ import sys
 import threading
 import time
 from typing import Any, TextIO
+
+from ..loopback_guard import new_token
+from . import studio_guard
 
 URL = re.compile(r"http://localhost:(\d+)/")
 _LEVELS = {"info": logging.INFO, "warning": logging.WARNING, "error": logging.ERROR}
@@ -70,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--desktop", action="store_true")
     parser.add_argument("--live", action="store_true")
     parser.add_argument("--browser", action="store_true")
+    parser.add_argument("--allow-origin", action="append", default=[])
     args = parser.parse_args(argv)
 
     # The answers own stdout; the Studio's own printing goes to stderr.
@@ -82,16 +91,18 @@ def main(argv: list[str] | None = None) -> int:
         answers.write(line.replace("\n", " ") + "\n")
         answers.flush()
 
+    gate = studio_guard.Gate(new_token(), args.allow_origin)
+    named: set[str] = set()
     try:
-        handle = _launch(args, capture)
+        handle = _launch(args, capture, gate, named)
     except Exception as exc:  # noqa: BLE001 - the parent shows it as one error line
         say(f"error {' '.join(str(exc).split()) or type(exc).__name__}")
         return 1
-    say("ready" if args.desktop else f"url http://localhost:{capture.port}/")
+    say("ready" if args.desktop else f"url {gate.url(capture.port or 0)}")
     commands: queue.Queue = queue.Queue()
     threading.Thread(target=_reader, args=(commands,), daemon=True).start()
     try:
-        _serve(handle, commands, say, live=args.live)
+        _serve(handle, commands, say, named, live=args.live)
     finally:
         handle.close()
     return 0
@@ -115,16 +126,19 @@ def _loopback_only() -> None:
     web_server.bind_public_socket = loopback
 
 
-def _launch(args: argparse.Namespace, capture: _Capture) -> Any:
+def _launch(
+    args: argparse.Namespace, capture: _Capture, gate: studio_guard.Gate, named: set[str]
+) -> Any:
     from mujoco.studio import app as studio_app
     from mujoco.studio import launch_passive, viewer_protocol
 
     _loopback_only()
+    studio_guard.install(gate)
 
     config = viewer_protocol.ViewerConfig(
         gfx="" if args.desktop else "web", http_port=args.port, open_browser=args.browser
     )
-    plugins: list[Any] = [studio_app.App()]
+    plugins: list[Any] = [studio_app.App(), studio_guard.named_models_only(named)]
     if not args.live:
         plugins += list(studio_app.SIM_PLUGINS)  # the Studio steps the model, as its own app
     handle = launch_passive.launch(config, plugins=plugins)
@@ -139,7 +153,7 @@ def _launch(args: argparse.Namespace, capture: _Capture) -> Any:
     return handle
 
 
-def _serve(handle: Any, commands: queue.Queue, say: Any, *, live: bool) -> None:
+def _serve(handle: Any, commands: queue.Queue, say: Any, named: set[str], *, live: bool) -> None:
     import mujoco
     import numpy as np
     from mujoco.studio import messages
@@ -155,6 +169,7 @@ def _serve(handle: Any, commands: queue.Queue, say: Any, *, live: bool) -> None:
         while line is not None:
             verb, _, rest = line.partition(" ")
             if verb == "load":
+                named.add(os.path.abspath(rest))  # the one file the parent names
                 before = handle.model
                 handle.dispatch(messages.LoadModelEvent(path=rest))
                 ok = handle.model is not None and handle.model is not before

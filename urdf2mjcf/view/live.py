@@ -16,6 +16,7 @@ import base64
 import tempfile
 import threading
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,8 @@ PACE_MAX = 1000.0
 
 class LiveView:
     """The viewer of one run of ``model``/``data``: call :meth:`step` after every step,
-    :meth:`close` at the end."""
+    :meth:`close` at the end. ``origins``: those the viewer answers besides its own page
+    (``--allow-origin``)."""
 
     def __init__(
         self,
@@ -42,6 +44,7 @@ class LiveView:
         port: int = 0,
         browser: bool = True,
         what: str = "the run",
+        origins: Iterable[str] = (),
     ) -> None:
         import mujoco
 
@@ -53,7 +56,7 @@ class LiveView:
         mujoco.mj_saveModel(model, str(copy), None)
         self._sender: threading.Thread | None = None
         try:
-            self.studio = Studio(port=port, live=True)
+            self.studio = Studio(port=port, live=True, origins=origins)
         except BaseException:
             self._folder.cleanup()
             raise

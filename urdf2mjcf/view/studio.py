@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import webbrowser
+from collections.abc import Iterable
 from pathlib import Path
 
 from ..errors import ConversionError
@@ -68,14 +69,25 @@ class Studio:
     """One viewer: the browser viewer (``url``), or the desktop one (``desktop``).
 
     ``live``: the viewer shows the states it is sent (:meth:`state`) and steps nothing.
-    ``port``: the browser viewer's port (0: the first free one from 8080 up)."""
+    ``port``: the browser viewer's port (0: the first free one from 8080 up).
+    ``origins``: the origins, besides the viewer's own page, it answers (``--allow-origin``).
+    ``url`` carries the run's token: the page's address, to print and open."""
 
-    def __init__(self, *, port: int = 0, desktop: bool = False, live: bool = False) -> None:
+    def __init__(
+        self,
+        *,
+        port: int = 0,
+        desktop: bool = False,
+        live: bool = False,
+        origins: Iterable[str] = (),
+    ) -> None:
         if desktop:
             check_desktop()
         check_studio()
         args = [sys.executable, "-m", "urdf2mjcf.view.child", "--port", str(port)]
         args += ["--desktop"] * desktop + ["--live"] * live
+        for origin in origins:
+            args += ["--allow-origin", origin]
         self.proc = subprocess.Popen(
             args,
             stdin=subprocess.PIPE,

@@ -146,11 +146,13 @@ def serve(
     desktop: bool = False,
     cache: Path | None = None,
     watch: Iterable[Path] = (),
+    origins: Iterable[str] = (),
 ) -> None:
     """Convert ``source`` into a working folder, show it, and convert again on every
     change of a file the conversion read (``watch``: files to watch besides those),
     until SIGTERM or Ctrl-C. A first conversion that fails is the command's error; a
-    later one prints its ``error:`` line and the viewer keeps the last good model."""
+    later one prints its ``error:`` line and the viewer keeps the last good model.
+    ``origins``: those the browser viewer answers besides its own page."""
     check_studio()  # said before converting
     if desktop:
         check_desktop()
@@ -186,7 +188,8 @@ def serve(
     try:
         shown, read = attempt()
         assert shown is not None
-        with _stopped_by_signals() as stop, Studio(port=port, desktop=desktop) as studio:
+        viewer = Studio(port=port, desktop=desktop, origins=origins)
+        with _stopped_by_signals() as stop, viewer as studio:
             if not studio.load(shown):
                 raise ConversionError("the viewer could not load the model", file=shown)
             tell(studio)
@@ -215,9 +218,17 @@ def serve(
         shutil.rmtree(work, ignore_errors=True)
 
 
-def show(path: Path, *, port: int = 0, browser: bool = True, what: str | None = None) -> None:
-    """Show the model file ``path`` in the browser viewer until SIGTERM or Ctrl-C."""
-    with _stopped_by_signals() as stop, Studio(port=port) as studio:
+def show(
+    path: Path,
+    *,
+    port: int = 0,
+    browser: bool = True,
+    what: str | None = None,
+    origins: Iterable[str] = (),
+) -> None:
+    """Show the model file ``path`` in the browser viewer until SIGTERM or Ctrl-C
+    (``origins``: those it answers besides its own page)."""
+    with _stopped_by_signals() as stop, Studio(port=port, origins=origins) as studio:
         if not studio.load(path):
             raise ConversionError("the viewer could not load the model", file=path)
         click.echo(f"viewing {what or path} at {studio.url} (Ctrl-C to stop)")

@@ -13,7 +13,7 @@ import click
 from ...cli_types import BoundedInt, FiniteFloat
 from ...limits import SEED_MAX
 from ..executors import Kind
-from ..live_options import live_options
+from ..live_options import check_allow_origin, live_options
 from ..trial_options import trial_options
 from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
 from .drift import PathLog, check_plot, drift_line, write_plot
@@ -162,6 +162,7 @@ def rover_drive_command(
     port: int,
     foxglove: int | None,
     foxglove_wait: bool,
+    allow_origins: tuple[str, ...] = (),
     task: str | None = None,
     trials: int | None = None,
     seed: int | None = None,
@@ -174,8 +175,11 @@ def rover_drive_command(
     from .console import check_console_options, serve_console
 
     if check_console_options(click.get_current_context(), console):
-        serve_console(scene, names, settle, pace, port)
+        serve_console(scene, names, settle, pace, port, allow_origins)
         return
+    check_allow_origin(
+        allow_origins, view or foxglove is not None, "--view, --console or --foxglove"
+    )
     if plan is not None:
         _check_plan_options(click.get_current_context())
     check_task_options(click.get_current_context(), task, trials, seed)
@@ -222,6 +226,7 @@ def rover_drive_command(
             view_pace,
             paths=logs if plot else None,
             stream=(foxglove, pace, foxglove_wait) if foxglove is not None else None,
+            origins=allow_origins,
         )
         if plot_to is not None:
             write_plot(logs[0], results, plot_to.tmp)
@@ -264,13 +269,15 @@ def _drive(
     pace: float | None = None,
     paths: list[PathLog] | None = None,
     stream: tuple[int, float, bool] | None = None,
+    origins: tuple[str, ...] = (),
 ) -> tuple[list[dict], dict[str, int]]:
     """Run ``plan``'s tasks in order, print each task's summary; the results and MuJoCo's
     warnings. ``names``: the rovers (--rover) where the plan names none. The
     recording of ``record`` goes to ``record_to`` (its reserved file); with ``pace``,
     the drive is shown live at that pace (it only reads the state); ``paths`` gets a
     :class:`PathLog` of the drive; ``stream`` (port, pace, wait): the recording's
-    messages are served to Foxglove while it drives."""
+    messages are served to Foxglove while it drives; ``origins``: those the viewer and
+    the stream answer besides our own page (``--allow-origin``)."""
     recorder = live = foxglove = None
     try:
         sim = RoverSim(scene)
@@ -280,7 +287,9 @@ def _drive(
         if stream is not None:
             from ..foxglove_live import FoxgloveStream
 
-            foxglove = FoxgloveStream(sim.d, stream[0], pace=stream[1], name="rover-drive")
+            foxglove = FoxgloveStream(
+                sim.d, stream[0], pace=stream[1], name="rover-drive", origins=origins
+            )
         if record is not None or foxglove is not None:
             from ..record import Recorder, rover_sources
 
@@ -306,7 +315,8 @@ def _drive(
         if pace is not None:
             from ...view.live import LiveView
 
-            live = LiveView(sim.m, sim.d, pace=pace, what=f"rover-drive {scene}")
+            what = f"rover-drive {scene}"
+            live = LiveView(sim.m, sim.d, pace=pace, what=what, origins=origins)
             sim.on_step.append(live.step)
         sim.settle(settle)
         if paths is not None:  # from where the odometry starts: the end of the settle

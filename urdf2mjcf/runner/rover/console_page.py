@@ -1,5 +1,16 @@
 """The console's page (``GET /``): plain HTML and JavaScript that does everything through
-the HTTP/JSON API of ``console.py`` with ``fetch()``; no file of its own to install."""
+the HTTP/JSON API of ``console.py`` with ``fetch()``; no file of its own to install.
+
+Names come from the bundle (rovers, joints, cameras), which travels between people:
+the page puts them in as text (``textContent``, ``new Option``, ``encodeURIComponent``
+in a path), never as HTML. Its ``Content-Security-Policy`` (:data:`CSP`) runs only its
+own script and style (by their hashes) and loads only from the console, so markup
+that got in anyway would run nothing and send nothing elsewhere.
+"""
+
+import base64
+import hashlib
+import re
 
 PAGE = """<!doctype html>
 <html lang="en">
@@ -96,8 +107,9 @@ function camera(name, cam) {
   const fig = document.createElement("figure"), img = new Image();
   const cap = document.createElement("figcaption");
   img.dataset.camera = cam; img.alt = cam; cap.textContent = cam;
+  const src = `/camera/${encodeURIComponent(name)}/${encodeURIComponent(cam)}.png`;
   const load = () => {  // the next image once this one is shown, while the rover is
-    if (rover === name && img.isConnected) img.src = `/camera/${name}/${cam}.png?t=${Date.now()}`;
+    if (rover === name && img.isConnected) img.src = `${src}?t=${Date.now()}`;
   };
   img.onload = () => {
     img.dataset.frames = +(img.dataset.frames || 0) + 1;  // images shown
@@ -126,11 +138,12 @@ async function show(name) {
   slider($("right"), lo, hi, now.targets.wheels.right, sendWheels);
   $("arm").replaceChildren();
   for (const [joint, [jlo, jhi]] of Object.entries(about.arm)) {
-    const label = document.createElement("label");
-    label.innerHTML =
-      `<span>${joint}</span><input type="range" step="0.01" class="joint"><output></output>`;
-    const input = label.querySelector("input");
+    const label = document.createElement("label"), span = document.createElement("span");
+    const input = document.createElement("input");
+    span.textContent = joint;  // a name from the bundle: text, never HTML
+    Object.assign(input, { type: "range", step: "0.01", className: "joint" });
     input.dataset.joint = joint;
+    label.append(span, input, document.createElement("output"));
     $("arm").append(label);
     slider(input, Math.max(jlo, -6.3), Math.min(jhi, 6.3), now.targets.arm[joint],
            () => command({ arm: { [joint]: +input.value } }));
@@ -178,3 +191,17 @@ $("rover").onchange = () => show($("rover").value);
 </body>
 </html>
 """
+
+
+def _hash(tag: str) -> str:
+    (body,) = re.findall(rf"<{tag}>(.*?)</{tag}>", PAGE, re.S)
+    return "'sha256-" + base64.b64encode(hashlib.sha256(body.encode()).digest()).decode() + "'"
+
+
+CSP = (
+    f"default-src 'none'; script-src {_hash('script')}; style-src {_hash('style')}; "
+    "img-src 'self'; connect-src 'self'; base-uri 'none'; form-action 'none'; "
+    "frame-ancestors 'none'"
+)
+"""The page's Content-Security-Policy: its own script and style, the console's images
+and API, nothing else."""
