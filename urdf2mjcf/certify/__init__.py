@@ -19,6 +19,7 @@ and by ``urdf2mjcf verify`` for any model against any description.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import Future
 from dataclasses import dataclass, field
@@ -87,15 +88,17 @@ class Certificate:
         if not self.computed:
             return {"computed": False, "why": self.why_not, "passed": False, "failures": []}
         implementation, _, version = self.reference.partition(" ")
-        return {
-            "computed": True,
-            "reference": {"implementation": implementation, "version": version},
-            "tolerances": self.tolerances.to_dict(),
-            **self.sections,
-            "changes": self.changes,
-            "passed": self.passed,
-            "failures": list(self.failures),
-        }
+        return json_safe(
+            {
+                "computed": True,
+                "reference": {"implementation": implementation, "version": version},
+                "tolerances": self.tolerances.to_dict(),
+                **self.sections,
+                "changes": self.changes,
+                "passed": self.passed,
+                "failures": list(self.failures),
+            }
+        )
 
     def summary(self) -> str:
         """One line: passed with the headline figures, or FAILED with the first failures."""
@@ -177,6 +180,35 @@ class Certificate:
             lines.append(f"  {name:<10} {verdict:<6} {value}{tol_text}")
         lines.append(f"  {'changes':<10} {len(self.changes)}")
         return "\n".join(lines)
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every NaN or infinite float written as None (JSON's null): a
+    report is JSON, which has no NaN; such a figure is a failure too
+    (:func:`not_finite`)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def not_finite(sections: Mapping[str, Any]) -> list[str]:
+    """A failure for each figure of ``sections`` that is NaN or infinite (a model whose
+    numbers overflow): no comparison with a tolerance can pass it."""
+    found: list[str] = []
+    stack: list[tuple[str, Any]] = [(k, v) for k, v in sections.items()]
+    while stack:
+        where, value = stack.pop()
+        if isinstance(value, float) and not math.isfinite(value):
+            found.append(f"{where}: {value} is not a finite number")
+        elif isinstance(value, dict):
+            stack.extend((f"{where}.{k}", v) for k, v in value.items())
+        elif isinstance(value, list | tuple):
+            stack.extend((f"{where}[{i}]", v) for i, v in enumerate(value))
+    return sorted(found)
 
 
 class CertificateFailed(ConversionError):
@@ -290,24 +322,26 @@ def _certify(
     seen = {c["element"] for c in listed}
     extra = joint_changes + mass_changes + changes_mod.massless_with_inertia(ref)
     listed += [c for c in extra if c["element"] not in seen]
+    sections = {
+        "frames": frames,
+        "joints": joints,
+        "mass": mass_sec,
+        "dynamics": dyn,
+        "collision": collision,
+        "checks": checks,
+    }
     return Certificate(
         reference=ref.implementation,
         tolerances=tol,
-        sections={
-            "frames": frames,
-            "joints": joints,
-            "mass": mass_sec,
-            "dynamics": dyn,
-            "collision": collision,
-            "checks": checks,
-        },
+        sections=sections,
         changes=listed,
         failures=failures
         + joint_failures
         + mass_failures
         + dyn_failures
         + collision_failures
-        + check_failures,
+        + check_failures
+        + not_finite(sections),
     )
 
 
