@@ -39,6 +39,8 @@ DOCUMENTS_MAX = 1_000
 """Files one model reads while MuJoCo parses it: itself, its includes and its
 ``<model>`` assets (ours read one)."""
 
+DOCUMENT_BYTES_MAX = 256 * 2**20
+"""Bytes of all those files together (each is within the description limit too)."""
 ELEMENTS_MAX = 50_000
 """Elements of a model once its includes, replicates and attachments are expanded
 (our iMETRO scene has 535, a Menagerie-sized humanoid about 100). Its files may
@@ -122,6 +124,8 @@ class _Reader:
         self.error = error
         self.documents = 0
         self.tags = 0
+        self.bytes = 0
+        self.points: dict[str, int] = {}  # per flexcomp file, counted once
 
     def fail(self, message: str, file: str, el: Any | None = None) -> ConversionError:
         return self.error(message, file=file, element=label(el) if el is not None else None)
@@ -140,13 +144,21 @@ class _Reader:
         if self.documents > DOCUMENTS_MAX:
             raise self.fail(f"reads more than {DOCUMENTS_MAX:,} files (refused)", at or path, el)
         element = label(el) if el is not None else None
+        refuse_kernel_file(path, self.error, at or path, element)
         try:
             data = untrusted.read_file(path, "description", error=self.error, what=what)
         except ConversionError as exc:  # named by the file and element that name it
             raise self.error(exc.detail, file=at or path, element=element) from None
         self.tags += data.count(b"<")  # each element opens (and closes): bounded before parsing
+        self.bytes += len(data)
         if self.tags > 2 * ELEMENTS_MAX:
             raise self.fail(f"has more than {ELEMENTS_MAX:,} elements (refused)", path)
+        if self.bytes > DOCUMENT_BYTES_MAX:
+            raise self.fail(
+                f"reads more than {DOCUMENT_BYTES_MAX / 2**20:g} MB of MJCF (refused)",
+                at or path,
+                el,
+            )
         return parse_document(data, path, self.error)
 
     def name(self, el: Any, attr: str, file: str) -> str:
@@ -245,7 +257,10 @@ class _Reader:
         outer = _include_folder(el)
         names = [value] + ([paths.join(outer, value)] if outer is not None else [])
         found = checked_files(names, [model], "mesh", self.error, here, label(el))
-        el.set(POINTS, str(max(_points_in_file(p) for p in found)))
+        for path in found:
+            if path not in self.points:
+                self.points[path] = _points_in_file(path)
+        el.set(POINTS, str(max(self.points[p] for p in found)))
 
 
 def check_asset_files(
@@ -311,10 +326,10 @@ def candidates(names: list[str], models: list[Model], dirs: set[str] | None = No
         variants += [paths.base_name(n) for n in names]
     folders = {""} | (dirs if dirs is not None else {d for m in models for d in m.dirs})
     out: dict[str, None] = {}
-    for model in models:
+    for base in dict.fromkeys(m.folder for m in models):
         for sub in sorted(folders):
             for name in variants:
-                out[paths.join(model.folder, paths.join(sub, name))] = None
+                out[paths.join(base, paths.join(sub, name))] = None
     return list(out)
 
 
@@ -335,10 +350,33 @@ def checked_files(
         raise error(f"file not found: {untrusted.excerpt(names[0])}", file=file, element=element)
     for path in found:
         try:
-            untrusted.check_regular(path, kind, error=error)
+            size = untrusted.check_regular(path, kind, error=error)
         except ConversionError as exc:  # named by the file and element that name it
             raise error(exc.detail, file=file, element=element) from None
+        refuse_kernel_file(path, error, file, element)
+        if size == 0:
+            raise error(f"file {path} is empty (refused)", file=file, element=element)
     return found
+
+
+_KERNEL = ("/proc", "/sys", "/dev")
+
+
+def refuse_kernel_file(
+    path: str, error: type[ConversionError], file: str, element: str | None
+) -> None:
+    """``error`` when ``path`` leads into ``/proc``, ``/sys`` or ``/dev``: some of their
+    regular files block a reader (``/proc/kmsg``, a trace pipe), and MuJoCo reads
+    assets itself, waiting."""
+    real = os.path.realpath(path)
+    if real.startswith("/dev/shm/"):  # a memory file system of plain files
+        return
+    if any(real == top or real.startswith(top + "/") for top in _KERNEL):
+        raise error(
+            f"file {path} is a kernel file ({real}), not a model's file; refused",
+            file=file,
+            element=element,
+        )
 
 
 def parse_document(data: bytes, path: str, error: type[ConversionError]) -> Any:

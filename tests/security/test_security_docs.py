@@ -53,6 +53,7 @@ def _bounds() -> dict[str, str]:
         "rover.sim.TASK_TIMEOUT": f"{sim.TASK_TIMEOUT:g} s",
         "mjcf_files.ELEMENTS_MAX": f"{mjcf_files.ELEMENTS_MAX:,} elements",
         "mjcf_files.DOCUMENTS_MAX": f"{mjcf_files.DOCUMENTS_MAX:,} files",
+        "mjcf_files.DOCUMENT_BYTES_MAX": f"{mjcf_files.DOCUMENT_BYTES_MAX / 2**20:g} MB",
         "mjcf_bounds.BODIES_MAX": f"{mjcf_bounds.BODIES_MAX:,} bodies",
         "mjcf_bounds.FLEX_POINTS_MAX": f"{mjcf_bounds.FLEX_POINTS_MAX:,} points",
         "mjcf_bounds.DEPTH_MAX": f"{mjcf_bounds.DEPTH_MAX:,} levels",
