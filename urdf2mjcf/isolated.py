@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import faulthandler
 import os
 import pickle
 import resource
@@ -88,6 +89,7 @@ def call(fn: Callable[[], T], *, timeout: float, memory: int | None = None) -> T
 def _child_start(parent: int, memory: int | None) -> None:
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, signal.SIG_DFL)  # the parent handles them; we just end
+    faulthandler.disable()  # a crash is one error line of the parent's, not a stack dump
     if sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG

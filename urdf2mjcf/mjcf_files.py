@@ -144,8 +144,9 @@ class _Reader:
         if self.documents > DOCUMENTS_MAX:
             raise self.fail(f"reads more than {DOCUMENTS_MAX:,} files (refused)", at or path, el)
         element = label(el) if el is not None else None
-        refuse_kernel_file(path, self.error, at or path, element)
         try:
+            untrusted.check_regular(path, "description", error=self.error, what=what)
+            refuse_kernel_file(path, self.error, at or path, element)
             data = untrusted.read_file(path, "description", error=self.error, what=what)
         except ConversionError as exc:  # named by the file and element that name it
             raise self.error(exc.detail, file=at or path, element=element) from None

@@ -28,7 +28,7 @@ from pathlib import Path
 import mujoco
 import pytest
 
-from tests.security.attack import MEMORY_LIMIT, assert_one_error, run, snapshot
+from tests.security.attack import MEMORY_LIMIT, ROOT, assert_one_error, run, snapshot
 from tests.security.test_signals import descendants, running
 from urdf2mjcf.bundle import SCHEMA_VERSION
 
@@ -642,15 +642,37 @@ def _third_party_models() -> list[Path]:
     return found
 
 
-def test_models_we_did_not_write_compile_to_the_same_model(tmp_path):
-    """Each model compiles to the model MuJoCo compiles from the file itself, field for
-    field (the compile comes back from another process as an MJB file: no signature)."""
+@pytest.fixture(scope="module")
+def imetro(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("bundle") / "imetro"
+    recipe = str(ROOT / "recipes" / "imetro.yaml")
+    res = run(
+        "make-facility", recipe, "--root", str(ROOT), "-o", str(out), "--no-components",
+        cwd=ROOT, timeout=900, memory=False,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def _same_model(path: Path) -> None:
+    """``path`` compiles through the checks to the model MuJoCo compiles from the file
+    itself, field for field, the asset paths it recorded too (the compile comes back
+    from another process as an MJB file, which has no signature)."""
     from tests.same_model import differences
     from urdf2mjcf import mjcf_input
 
+    want = mujoco.MjModel.from_xml_path(str(path))
+    got = mjcf_input.load_model(path)
+    assert [d for d in differences(want, got) if d != "signature"] == [], path
+    assert got.paths == want.paths, path
+
+
+def test_models_we_did_not_write_compile_to_the_same_model():
     models = _third_party_models()
     assert len(models) >= 10, models
     for path in models:
-        want = mujoco.MjModel.from_xml_path(str(path))
-        got = mjcf_input.load_model(path)
-        assert [d for d in differences(want, got) if d != "signature"] == [], path
+        _same_model(path)
+
+
+def test_our_bundle_compiles_to_the_same_model(imetro):
+    _same_model(imetro / "scene.xml")
