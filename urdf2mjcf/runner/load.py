@@ -58,14 +58,6 @@ def bundled_file(folder: Path, manifest: dict, key: str) -> Path | None:
     return bundle.bundled_file(folder, manifest, key, folder / MANIFEST, error=LoadError)
 
 
-def check_scene_files(scene: Path) -> None:
-    """Every file a bundle's MJCF makes MuJoCo open is a regular file within its size
-    limit, found where MuJoCo will look (includes at any depth, ``meshdir`` wherever
-    set), and the model's size is bounded: a bundle is a stranger's input too
-    (:func:`urdf2mjcf.mjcf_input.check_files`)."""
-    mjcf_input.check_files(scene, error=LoadError, what="scene")
-
-
 def compile_scene(scene: Path) -> mujoco.MjModel:
     """The compiled scene, loaded as a stranger's MJCF (:mod:`urdf2mjcf.mjcf_input`);
     a LoadError naming the file and element when it is refused or MuJoCo cannot load
