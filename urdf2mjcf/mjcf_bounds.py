@@ -35,7 +35,8 @@ FLEX_POINTS_MAX = 100_000
 DEPTH_MAX = 1_000
 """Nesting of elements through includes (MuJoCo reads one file to about 500)."""
 MESH_VERTICES_MAX = 1_000_000
-"""Vertices of one built-in mesh (``<mesh builtin>``: its resolution squared)."""
+"""Vertices of one built-in mesh (``<mesh builtin>``: its resolution squared) or one
+written into the model (``<mesh vertex>``)."""
 PIXELS_MAX = 2**26
 """Pixels of one texture, built in or read from an image (8192 x 8192; our
 skyboxes have 3.8 million)."""
@@ -140,8 +141,15 @@ class _Count:
             if sub is not None and sub.path in self.done:
                 e, b, p = self.done[sub.path]
                 return [1 + e, b, p]
+        if tag == "flex" and el.get("vertex") is not None:  # a flex written out point by point
+            points = len(str(el.get("vertex")).split()) // 3
+            return [1 + points, 0, points]
         if tag == "mesh" and el.get("builtin") is not None:
             self.builtin_mesh(el)
+        if tag == "mesh" and el.get("vertex") is not None:
+            vertices = len(str(el.get("vertex")).split()) // 3
+            if vertices > MESH_VERTICES_MAX:
+                raise self.fail(f"has more than {MESH_VERTICES_MAX:,} vertices (refused)", el)
         if tag == "hfield":  # its samples are allocated while MuJoCo parses
             rows, cols = (max(0, self.ints(el, a, 1, 0)[0]) for a in ("nrow", "ncol"))
             if rows * cols > HFIELD_SAMPLES_MAX:

@@ -514,6 +514,10 @@ BOMBS = {
         _doc('<asset><mesh name="m" builtin="supersphere" params="100000 1 1"/></asset>'),
         ("<mesh", "1,000,000 vertices"),
     ),
+    "written-out mesh": (
+        _doc('<asset><mesh name="m" vertex="' + "0 0 0 " * 1_000_001 + '"/></asset>'),
+        ("<mesh", "1,000,000 vertices"),
+    ),
     "texture": (
         _doc('<asset><texture name="t" builtin="checker" type="2d" width="100000" '
              'height="100000"/></asset>'),
