@@ -242,8 +242,8 @@ def _broken_copy(facility: Path, work: Path, name: str, file: str, data: bytes) 
         ("facility.json", b"{oops", ("facility.json", "not a manifest")),
         ("facility.json", GARBAGE, ("facility.json", "not a manifest")),
         ("facility.json", b"[1, 2]", ("facility.json", "components")),
-        ("scene.xml", GARBAGE, ("scene.xml", "MuJoCo cannot load it")),
-        ("scene.xml", b"", ("scene.xml", "MuJoCo cannot load it")),
+        ("scene.xml", GARBAGE, ("scene.xml", "not well-formed XML")),
+        ("scene.xml", b"", ("scene.xml", "not well-formed XML")),
     ],
 )
 def test_runners_broken_facility(command, file, data, needles, facilities, work):

@@ -30,6 +30,7 @@ def test_the_limits_table_is_the_code_s():
 
 
 def _bounds() -> dict[str, str]:
+    from urdf2mjcf import limits, mjcf_bounds, mjcf_files, mjcf_input
     from urdf2mjcf.facility import scatter
     from urdf2mjcf.runner import cli as runner_cli
     from urdf2mjcf.runner import waypoints
@@ -50,6 +51,23 @@ def _bounds() -> dict[str, str]:
         "waypoints.STEPS_MAX": f"{waypoints.STEPS_MAX:,} steps",
         "rover.sim.SETTLE_MAX": f"{sim.SETTLE_MAX:g} s",
         "rover.sim.TASK_TIMEOUT": f"{sim.TASK_TIMEOUT:g} s",
+        "mjcf_files.ELEMENTS_MAX": f"{mjcf_files.ELEMENTS_MAX:,} elements",
+        "mjcf_files.DOCUMENTS_MAX": f"{mjcf_files.DOCUMENTS_MAX:,} files",
+        "mjcf_files.DOCUMENT_BYTES_MAX": f"{mjcf_files.DOCUMENT_BYTES_MAX / 2**20:g} MB",
+        "mjcf_bounds.BODIES_MAX": f"{mjcf_bounds.BODIES_MAX:,} bodies",
+        "mjcf_bounds.FLEX_POINTS_MAX": f"{mjcf_bounds.FLEX_POINTS_MAX:,} points",
+        "mjcf_bounds.DEPTH_MAX": f"{mjcf_bounds.DEPTH_MAX:,} levels",
+        "mjcf_bounds.MESH_VERTICES_MAX": f"{mjcf_bounds.MESH_VERTICES_MAX:,} vertices",
+        "mjcf_bounds.PIXELS_MAX": f"{mjcf_bounds.PIXELS_MAX:,} pixels",
+        "mjcf_bounds.HFIELD_SAMPLES_MAX": f"{mjcf_bounds.HFIELD_SAMPLES_MAX:,} samples",
+        "mjcf_bounds.MEMORY_MAX": f"{mjcf_bounds.MEMORY_MAX / 2**30:g} GiB",
+        "mjcf_bounds.SIZE_COUNT_MAX": f"{mjcf_bounds.SIZE_COUNT_MAX:,} entries",
+        "mjcf_bounds.USER_FIELDS_MAX": f"{mjcf_bounds.USER_FIELDS_MAX:,} numbers",
+        "mjcf_bounds.RENDER_SIZE_MAX": f"{mjcf_bounds.RENDER_SIZE_MAX:,} pixels",
+        "mjcf_bounds.ITERATIONS_MAX": f"{mjcf_bounds.ITERATIONS_MAX:,} iterations",
+        "mjcf_input.COMPILE_TIMEOUT": f"{mjcf_input.COMPILE_TIMEOUT:g} s",
+        "mjcf_input.COMPILE_MEMORY": f"{mjcf_input.COMPILE_MEMORY / 2**30:g} GiB",
+        "limits.TIMESTEP_RANGE": "{:g} to {:g} s".format(*limits.TIMESTEP_RANGE),
     }
 
 

@@ -20,6 +20,7 @@ and by ``urdf2mjcf verify`` for any model against any description.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import Future
 from dataclasses import dataclass, field
@@ -89,15 +90,17 @@ class Certificate:
         if not self.computed:
             return {"computed": False, "why": self.why_not, "passed": False, "failures": []}
         implementation, _, version = self.reference.partition(" ")
-        return {
-            "computed": True,
-            "reference": {"implementation": implementation, "version": version},
-            "tolerances": self.tolerances.to_dict(),
-            **self.sections,
-            "changes": self.changes,
-            "passed": self.passed,
-            "failures": list(self.failures),
-        }
+        return json_safe(
+            {
+                "computed": True,
+                "reference": {"implementation": implementation, "version": version},
+                "tolerances": self.tolerances.to_dict(),
+                **self.sections,
+                "changes": self.changes,
+                "passed": self.passed,
+                "failures": list(self.failures),
+            }
+        )
 
     def summary(self) -> str:
         """One line: passed with the headline figures, or FAILED with the first failures;
@@ -209,6 +212,35 @@ class Certificate:
             lines.append(f"  {name:<10} {verdict:<6} {value}{tol_text}")
         lines.append(f"  {'changes':<10} {len(self.changes)}")
         return "\n".join(lines)
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every NaN or infinite float written as None (JSON's null): a
+    report is JSON, which has no NaN; such a figure is a failure too
+    (:func:`not_finite`)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def not_finite(sections: Mapping[str, Any]) -> list[str]:
+    """A failure for each figure of ``sections`` that is NaN or infinite (a model whose
+    numbers overflow): no comparison with a tolerance can pass it."""
+    found: list[str] = []
+    stack: list[tuple[str, Any]] = [(k, v) for k, v in sections.items()]
+    while stack:
+        where, value = stack.pop()
+        if isinstance(value, float) and not math.isfinite(value):
+            found.append(f"{where}: {value} is not a finite number")
+        elif isinstance(value, dict):
+            stack.extend((f"{where}.{k}", v) for k, v in value.items())
+        elif isinstance(value, list | tuple):
+            stack.extend((f"{where}[{i}]", v) for i, v in enumerate(value))
+    return sorted(found)
 
 
 class CertificateFailed(ConversionError):
@@ -327,25 +359,27 @@ def _certify(
         **ref.readers(),
         "agreement": ref.agreement(vectors, tol.frame_position_m, tol.frame_rotation_rad),
     }
+    sections = {
+        "references": references,
+        "frames": frames,
+        "joints": joints,
+        "mass": mass_sec,
+        "dynamics": dyn,
+        "collision": collision,
+        "checks": checks,
+    }
     return Certificate(
         reference=ref.implementation,
         tolerances=tol,
-        sections={
-            "references": references,
-            "frames": frames,
-            "joints": joints,
-            "mass": mass_sec,
-            "dynamics": dyn,
-            "collision": collision,
-            "checks": checks,
-        },
+        sections=sections,
         changes=listed,
         failures=failures
         + joint_failures
         + mass_failures
         + dyn_failures
         + collision_failures
-        + check_failures,
+        + check_failures
+        + not_finite(sections),
     )
 
 

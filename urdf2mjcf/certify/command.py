@@ -63,23 +63,12 @@ def load_name_map(path: Path) -> NameMap:
 
 
 def load_model(path: Path) -> Any:
-    """``mujoco.MjModel`` of the MJCF file at ``path`` (MuJoCo opens what it includes)."""
-    import mujoco
+    """``mujoco.MjModel`` of the MJCF file at ``path``: a stranger's model, so every file
+    it names is checked before MuJoCo opens it and its size bounded before MuJoCo
+    compiles it (:func:`urdf2mjcf.mjcf_input.load_model`)."""
+    from ..mjcf_input import load_model as load_untrusted
 
-    from ..mjmodel import LOCK
-    from ..untrusted import check_regular
-
-    check_regular(path, "description", what="model")
-    with LOCK:
-        previous = mujoco.get_mju_user_warning()
-        mujoco.set_mju_user_warning(lambda msg: None)  # a warning is not the model's figure
-        try:
-            return mujoco.MjModel.from_xml_path(str(path))
-        except ValueError as exc:
-            message = " ".join(str(exc).split())
-            raise InputError(f"MuJoCo cannot load the model: {message}", file=path) from None
-        finally:
-            mujoco.set_mju_user_warning(previous)
+    return load_untrusted(path, error=InputError, what="model")
 
 
 @click.command("urdf2mjcf verify", context_settings={"help_option_names": ["-h", "--help"]})

@@ -6,7 +6,6 @@ version), never a facility root or a recipe of a checkout."""
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -15,9 +14,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .. import bundle, untrusted
+from .. import bundle, mjcf_input
 from ..bundle import MANIFEST
 from ..errors import FacilityError
+from ..limits import TIMESTEP_RANGE
 
 
 class LoadError(FacilityError):
@@ -58,54 +58,21 @@ def bundled_file(folder: Path, manifest: dict, key: str) -> Path | None:
     return bundle.bundled_file(folder, manifest, key, folder / MANIFEST, error=LoadError)
 
 
-# MJCF attributes naming a file MuJoCo opens itself (a cube map texture has six)
-_SIDES = ("right", "left", "up", "down", "front", "back")
-_FILE_ATTRS = ("file", *(f"file{side}" for side in _SIDES))
-
-
-def check_scene_files(scene: Path, _depth: int = 0) -> None:
-    """Every file a bundle's MJCF makes MuJoCo open is a regular file within its size
-    limit: a bundle is a stranger's input too, and MuJoCo would block on a FIFO or read
-    ``/dev/zero`` until memory runs out. Includes are followed (to a bounded depth)."""
-    from lxml import etree
-
-    data = untrusted.read_file(scene, "description", error=LoadError, what="scene")
-    try:
-        root = etree.fromstring(data, etree.XMLParser(resolve_entities=False, no_network=True))
-    except etree.XMLSyntaxError:
-        return  # MuJoCo's own error names the line
-    base = scene.parent
-    compiler = root.find(".//compiler")
-    dirs = [""] + [
-        compiler.get(a, "") for a in ("meshdir", "texturedir", "assetdir") if compiler is not None
-    ]
-    for el in root.iter():
-        if not isinstance(el.tag, str):
-            continue
-        for attr in _FILE_ATTRS:
-            value = el.get(attr)
-            if not value:
-                continue
-            kind = "texture" if el.tag in ("texture", "hfield") else "mesh"
-            if el.tag == "include" or el.tag == "model":
-                kind = "description"
-            for folder in dirs:
-                path = Path(value) if Path(value).is_absolute() else base / folder / value
-                if not os.path.lexists(path):
-                    continue  # MuJoCo reports a missing file itself
-                untrusted.check_regular(path, kind, error=LoadError, element=f"<{el.tag}>")
-                if el.tag == "include" and _depth < 16:
-                    check_scene_files(path, _depth + 1)
-
-
 def compile_scene(scene: Path) -> mujoco.MjModel:
-    """The compiled scene; a LoadError with MuJoCo's reason when it cannot be loaded."""
-    check_scene_files(scene)
-    try:
-        return mujoco.MjModel.from_xml_path(str(scene))
-    except ValueError as exc:
-        reason = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        raise LoadError(f"MuJoCo cannot load it: {reason}", file=scene) from None
+    """The compiled scene, loaded as a stranger's MJCF (:mod:`urdf2mjcf.mjcf_input`);
+    a LoadError naming the file and element when it is refused or MuJoCo cannot load
+    it, or when its timestep is outside the range a recipe may set (the runtime steps
+    by it: a tiny one would run without end)."""
+    m = mjcf_input.load_model(scene, error=LoadError, what="scene")
+    low, high = TIMESTEP_RANGE
+    if not low <= m.opt.timestep <= high:
+        raise LoadError(
+            f"timestep {m.opt.timestep:g} s is outside [{low:g}, {high:g}] s, the range "
+            "a facility may simulate at",
+            file=scene,
+            element="<option timestep>",
+        )
+    return m
 
 
 def open_facility(
