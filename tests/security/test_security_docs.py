@@ -1,13 +1,13 @@
 """docs/security.md states facts the code holds: the size limits (each kind, its
-default, its variable), the YAML expansion bound, the xacro expansion bounds and the
-trust switch are read from the code here, so the page cannot drift."""
+default, its variable), the YAML expansion bound, the xacro expansion bounds (work,
+memory, single values, macro calls, includes) and the trust switch are read from the code here, so the page cannot drift."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from urdf2mjcf import untrusted
-from urdf2mjcf.passes import xacro_guard
+from urdf2mjcf.passes import xacro_budget, xacro_guard, xacro_install
 from urdf2mjcf.passes.validate import ValidateConfig
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "security.md").read_text()
@@ -38,12 +38,13 @@ def _bounds() -> dict[str, str]:
 
     return {
         "ValidateConfig.max_steps": f"{ValidateConfig.max_steps:,} steps",
-        "xacro_guard.MAX_TEXT": f"{xacro_guard.MAX_TEXT:,} characters",
-        "xacro_guard.MAX_ITEMS": f"{xacro_guard.MAX_ITEMS:,} items",
-        "xacro_guard.MAX_ITERATIONS": f"{xacro_guard.MAX_ITERATIONS:,} iterations",
-        "xacro_guard.MAX_INT_BITS": f"{xacro_guard.MAX_INT_BITS:,} bits",
-        "xacro_guard.MAX_MACRO_CALLS": f"{xacro_guard.MAX_MACRO_CALLS:,} macro calls",
-        "xacro_guard.MAX_INCLUDES": f"{xacro_guard.MAX_INCLUDES:,} includes",
+        "xacro_budget.MAX_WORK": f"{xacro_budget.MAX_WORK:,} steps",
+        "xacro_budget.MAX_MEMORY": f"{xacro_budget.MAX_MEMORY:,} bytes",
+        "xacro_budget.MAX_TEXT": f"{xacro_budget.MAX_TEXT:,} characters",
+        "xacro_budget.MAX_ITEMS": f"{xacro_budget.MAX_ITEMS:,} items",
+        "xacro_budget.MAX_INT_BITS": f"{xacro_budget.MAX_INT_BITS:,} bits",
+        "xacro_install.MAX_MACRO_CALLS": f"{xacro_install.MAX_MACRO_CALLS:,} macro calls",
+        "xacro_install.MAX_INCLUDES": f"{xacro_install.MAX_INCLUDES:,} includes",
         "scatter.COUNT_MAX": f"{scatter.COUNT_MAX:,} rocks",
         "scatter.TRY_MAX": f"{scatter.TRY_MAX:,} draws",
         "runner.cli.TRIALS_MAX": f"{runner_cli.TRIALS_MAX:,} trials",
@@ -86,6 +87,7 @@ def test_the_figures_the_page_repeats_are_the_code_s():
     for figure in (
         f"{untrusted.YAML_MAX_NODES:,} nodes",
         f"`{xacro_guard.TRUST_ENV}=1`",
+        f"{xacro_budget.MAX_WORK:,} steps for one expansion",
         f"`{untrusted.limit_env('mesh')}`",
     ):
         assert figure in DOC, figure

@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from urdf2mjcf.errors import XacroError
-from urdf2mjcf.passes import xacro_guard
+from urdf2mjcf.passes import xacro_guard, xacro_install
 from urdf2mjcf.passes.xacro import _LOCK
 
 pytestmark = pytest.mark.filterwarnings("ignore::hypothesis.errors.HypothesisWarning")
@@ -115,7 +115,7 @@ def _python(text: str):
 def _guarded(text: str):
     import xacro
 
-    with _LOCK, xacro_guard.installed(lambda: [], Path("fuzz.xacro")):
+    with _LOCK, xacro_install.installed(lambda: [], Path("fuzz.xacro")):
         symbols = xacro.Table(xacro._global_symbols)
         try:
             return ("ok", xacro.safe_eval(text, symbols))
@@ -151,6 +151,6 @@ def test_guarded_eval_refuses_with_an_xacro_error(text):
     import xacro
 
     with pytest.raises(XacroError, match="is not allowed in a description"):
-        with _LOCK, xacro_guard.installed(lambda: [], Path("fuzz.xacro")):
+        with _LOCK, xacro_install.installed(lambda: [], Path("fuzz.xacro")):
             xacro.init_stacks(None)
             xacro.safe_eval(text, xacro.Table(xacro._global_symbols))

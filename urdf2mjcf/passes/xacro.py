@@ -28,7 +28,7 @@ from .. import untrusted, xml_repair
 from ..errors import ConversionError, InputError, URDFError, XacroError
 from ..ir import Note, UrdfDocument
 from ..packages import PackageResolver
-from . import xacro_guard
+from . import xacro_install
 
 log = logging.getLogger(__name__)
 
@@ -155,7 +155,7 @@ def _guarded(source: Path, cfg: XacroConfig, found: list[Path]) -> Iterator[None
     def roots() -> list[Path]:
         return _yaml_roots(source, cfg, found)
 
-    with xacro_guard.installed(roots, source):
+    with xacro_install.installed(roots, source):
         yield
 
 

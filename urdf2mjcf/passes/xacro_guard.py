@@ -1,4 +1,5 @@
-"""Checked evaluation of xacro expressions: a description cannot run code.
+"""Checked evaluation of xacro expressions: a description cannot run code, nor make
+the expansion work or hold memory without bound.
 
 Stock xacro evaluates ``${...}`` with ``eval`` and no builtins, which is
 escapable (``python.vars``, ``python.type``, generator frames, format-string
@@ -9,75 +10,83 @@ Here every expression is parsed with :mod:`ast` and checked before it runs:
   assignment to anything but plain names (comprehension targets), no name
   starting with ``__``, no attribute starting with ``_``, no string subscript
   key starting with ``__``, not nested deeper than :data:`MAX_DEPTH`;
-* at run time: every attribute load and every subscript of the checked tree is
-  rewritten into a call of a guard that lets through only what descriptions
-  use: xacro's name spaces (the global ``python``, ``math`` and ``xacro`` only
-  for :data:`NAMESPACE_ALLOWED`), YAML data, and the methods of strings,
-  numbers, lists, tuples, dicts and sets (``str.format`` only without ``.``
-  or ``[`` in its fields, no ``format_map``).
+* at run time: every operation of the checked tree that can reach an object or
+  do work is rewritten into a call of a guard: attribute loads and subscripts
+  (only xacro's name spaces, the global ``python``, ``math`` and ``xacro`` only
+  for :data:`NAMESPACE_ALLOWED`, YAML data, and the methods of strings, numbers,
+  lists, tuples, dicts and sets that read values: ``str.format`` without ``.``
+  or ``[`` in its fields, no ``format_map``, no ``list.append``), calls,
+  operators, comparisons, displays, comprehensions, ``*`` unpacking and
+  f-strings.
+
+The guards charge the expansion's budget (:mod:`.xacro_budget`: a bound on work
+in steps and on memory in bytes, for all expressions, expanded text and
+elements together) and refuse a value past the bounds on single values before
+making it. A call reaches a builtin only through its bounded version
+(:mod:`.xacro_bounded`), which charges the loop the builtin runs in C, so
+``sum(map(sum, ...))`` and ``1.5 in range(...)`` are refused before they run.
 
 The guards reach the expression through the ``__builtins__`` dict xacro
 already replaces per call, under names that are not identifiers (a
 description cannot write them) and that no symbol table may hold (checked
-before each evaluation). ``xacro.load_yaml`` reads only regular files inside
-the description's own packages, within the ``yaml`` size limit and alias
-bound; included files are regular files within the ``description`` limit.
-
-Nothing an expression does may hang or exhaust memory: calls, ``+``, ``*``,
-``**``, ``<<`` and ``%`` go through guards that refuse results past
-:data:`MAX_ITEMS` items, :data:`MAX_TEXT` characters or :data:`MAX_INT_BITS`
-bits before computing them (``'a' * 10**10``, ``9**9**9``, ``range(10**12)``),
-comprehensions share one budget of :data:`MAX_ITERATIONS` iterations per
-expansion, and the text a property or attribute expands to, the macro calls
-and the includes of one expansion are bounded too (properties that double
-each other, macros that call others twice: xacro's billion laughs).
-
-Everything is installed by :func:`installed` (under the caller's lock: xacro
-keeps global state) and restored after; ``--trust-xacro`` installs nothing.
+before each evaluation). :mod:`.xacro_install` puts all of it into xacro for
+one expansion.
 """
 
 from __future__ import annotations
 
 import ast
 import builtins
-import io
 import math
 import operator
 import os
 import re
 import string
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from pathlib import Path
+from dataclasses import dataclass
 from types import CodeType
 from typing import Any
 
 from .. import untrusted
-from ..errors import ConversionError, InputError, XacroError
+from ..errors import InputError
+from .xacro_bounded import HINT, Bounded, Method, not_allowed
+from .xacro_budget import (
+    MAX_INT_BITS,
+    MAX_ITEMS,
+    MAX_MEMORY,
+    MAX_TEXT,
+    MAX_WORK,
+    NAME_STEPS,
+    OPERATION,
+    WALK_STEPS,
+    Budget,
+    Refused,
+    int_steps,
+    search_steps,
+    text_steps,
+    too_big,
+)
+
+__all__ = [
+    "HINT",
+    "MAX_DEPTH",
+    "MAX_INT_BITS",
+    "MAX_ITEMS",
+    "MAX_MEMORY",
+    "MAX_TEXT",
+    "MAX_WORK",
+    "Guards",
+    "Refused",
+    "check",
+    "checked",
+    "trust_from_env",
+]
 
 TRUST_ENV = "URDF2MJCF_TRUST_XACRO"
 """``1``/``true``/``yes`` runs a description's code as ROS's xacro does (API, facility)."""
 
 MAX_DEPTH = 100
 """How deeply an expression's syntax tree may nest (real ones stay below 30)."""
-
-HINT = "it could run code; --trust-xacro runs the file's code, as ROS's xacro does"
-
-MAX_ITEMS = 1_000_000
-"""Most items a range, list, tuple or set an expression makes may hold."""
-MAX_TEXT = 10_000_000
-"""Most characters a string an expression (or an expanded attribute) may hold."""
-MAX_INT_BITS = 100_000
-"""Largest integer an expression may compute (about 30,000 digits)."""
-MAX_ITERATIONS = 10_000_000
-"""Comprehension iterations one expansion may run, all expressions together."""
-MAX_MACRO_CALLS = 20_000
-"""Macro calls one expansion may make (our facility, the largest description we
-test, makes 365; a call costs up to a few milliseconds)."""
-MAX_INCLUDES = 10_000
-"""Files one expansion may include."""
-MAX_FACTORIAL = 10_000
-"""Largest argument of math.factorial, comb and perm."""
 
 # What $(eval ...) may call besides xacro's own functions (stock: every builtin).
 EVAL_BUILTINS = (
@@ -110,8 +119,27 @@ G_ITEM = "xacro guard.subscript"
 G_SLICE = "xacro guard.slice"
 G_CALL = "xacro guard.call"
 G_BINOP = "xacro guard.binop"
+G_UNARY = "xacro guard.unary"
+G_CMP = "xacro guard.compare"
 G_ITER = "xacro guard.iter"
-_GUARD_NAMES = (G_ATTR, G_ITEM, G_SLICE, G_CALL, G_BINOP, G_ITER)
+G_MADE = "xacro guard.made"
+G_STAR = "xacro guard.unpack"
+G_FORMAT = "xacro guard.format"
+G_FSTRING = "xacro guard.fstring"
+_GUARD_NAMES = (
+    G_ATTR,
+    G_ITEM,
+    G_SLICE,
+    G_CALL,
+    G_BINOP,
+    G_UNARY,
+    G_CMP,
+    G_ITER,
+    G_MADE,
+    G_STAR,
+    G_FORMAT,
+    G_FSTRING,
+)
 
 _FORBIDDEN_NODES: dict[type, str] = {
     ast.Lambda: "lambda",
@@ -122,17 +150,8 @@ _FORBIDDEN_NODES: dict[type, str] = {
 }
 
 
-class Refused(Exception):
-    """An expression (or a file it reads) a description may not use; ``reason`` is
-    the whole explanation, the caller adds file, line and expression."""
-
-    def __init__(self, reason: str):
-        super().__init__(reason)
-        self.reason = reason
-
-
 def _not_allowed(what: str) -> Refused:
-    return Refused(f"'{untrusted.excerpt(what, 60)}' is not allowed in a description ({HINT})")
+    return not_allowed(what)
 
 
 # -- static check and rewrite -----------------------------------------------------------
@@ -148,6 +167,13 @@ def _depth(tree: ast.AST) -> int:
             break
         stack.extend((child, depth + 1) for child in ast.iter_child_nodes(node))
     return deepest
+
+
+def _spec_text(spec: ast.expr | None) -> str:
+    if spec is None:
+        return ""
+    parts = spec.values if isinstance(spec, ast.JoinedStr) else [spec]
+    return "".join(str(p.value) for p in parts if isinstance(p, ast.Constant))
 
 
 def _check_node(node: ast.AST) -> None:
@@ -177,13 +203,50 @@ def _check_node(node: ast.AST) -> None:
         parts = spec.values if isinstance(spec, ast.JoinedStr) else [spec]
         if not all(isinstance(p, ast.Constant) and isinstance(p.value, str) for p in parts):
             raise _not_allowed("an f-string format spec that is computed")
-        text = "".join(p.value for p in parts)  # type: ignore[attr-defined]
+        text = _spec_text(spec)
         if _too_wide(text):
-            raise Refused(f"format spec '{untrusted.excerpt(text, 20)}' is too wide (refused)")
+            raise Refused(
+                f"format spec '{untrusted.excerpt(text, 20)}' is wider than the bound of "
+                f"{MAX_TEXT:,} characters (refused)"
+            )
+
+
+_BINARY = {
+    ast.Add: "+",
+    ast.Sub: "-",
+    ast.Mult: "*",
+    ast.Div: "/",
+    ast.FloorDiv: "//",
+    ast.Mod: "%",
+    ast.Pow: "**",
+    ast.LShift: "<<",
+    ast.RShift: ">>",
+    ast.BitOr: "|",
+    ast.BitXor: "^",
+    ast.BitAnd: "&",
+    ast.MatMult: "@",
+}
+_UNARY = {ast.USub: "-", ast.UAdd: "+", ast.Invert: "~"}
+
+
+def _counts(node: ast.AST) -> tuple[int, int]:
+    """(syntax nodes, name lookups) of ``node``: what one evaluation of it costs
+    besides its guarded operations (a name is looked up through every scope)."""
+    nodes = names = 0
+    for sub in ast.walk(node):
+        nodes += 1
+        names += isinstance(sub, ast.Name)
+    return nodes, names
 
 
 class _Rewrite(ast.NodeTransformer):
-    """``a.b`` -> ``G_ATTR(a, 'b')``, ``a[k]`` -> ``G_ITEM(a, k)`` (slices as ``G_SLICE``)."""
+    """Every operation that reaches an object or does work -> a call of its guard:
+    ``a.b`` -> ``G_ATTR(a, 'b')``, ``a[k]`` -> ``G_ITEM(a, k)``, ``f(x)`` ->
+    ``G_CALL(f, x)``, ``a + b`` -> ``G_BINOP('+', a, b)``, ``[x, y]`` ->
+    ``G_MADE([x, y])``, ``for x in it`` -> ``for x in G_ITER(it, ...)`` and so on."""
+
+    def __init__(self) -> None:
+        self._per: list[tuple[int, int]] = []
 
     @staticmethod
     def _call(name: str, args: list[ast.expr], like: ast.AST) -> ast.Call:
@@ -210,48 +273,156 @@ class _Rewrite(ast.NodeTransformer):
         return self._call(G_ITEM, [self.visit(node.value), self._key(node.slice)], node)
 
     def visit_Call(self, node: ast.Call) -> ast.expr:
+        keywords = []
+        for k in node.keywords:
+            value = self.visit(k.value)
+            if k.arg is None:  # **mapping
+                value = self._call(G_STAR, [value], k.value)
+            keywords.append(ast.copy_location(ast.keyword(arg=k.arg, value=value), k))
         call = ast.Call(
             func=ast.Name(id=G_CALL, ctx=ast.Load()),
             args=[self.visit(node.func), *(self.visit(a) for a in node.args)],
-            keywords=[self.visit(k) for k in node.keywords],
+            keywords=keywords,
         )
         return ast.copy_location(call, node)
 
     def visit_BinOp(self, node: ast.BinOp) -> ast.expr:
-        op = _GUARDED_OPS.get(type(node.op))
         left, right = self.visit(node.left), self.visit(node.right)
-        if op is None:
-            return ast.copy_location(ast.BinOp(left=left, op=node.op, right=right), node)
-        return self._call(G_BINOP, [ast.Constant(op), left, right], node)
+        op = ast.Constant(_BINARY[type(node.op)])
+        return self._call(G_BINOP, [op, left, right], node)
+
+    def visit_UnaryOp(self, node: ast.UnaryOp) -> ast.expr:
+        if isinstance(node.op, ast.Not) or isinstance(node.operand, ast.Constant):
+            return self.generic_visit(node)  # type: ignore[return-value]
+        op = ast.Constant(_UNARY[type(node.op)])
+        return self._call(G_UNARY, [op, self.visit(node.operand)], node)
+
+    def visit_Compare(self, node: ast.Compare) -> ast.expr:
+        if all(isinstance(op, ast.Is | ast.IsNot) for op in node.ops):
+            return self.generic_visit(node)  # type: ignore[return-value]
+        search = ast.Constant(any(isinstance(op, ast.In | ast.NotIn) for op in node.ops))
+        left = self._call(G_CMP, [self.visit(node.left), search], node.left)
+        rights: list[ast.expr] = [
+            self._call(G_CMP, [self.visit(c), search], c) for c in node.comparators
+        ]
+        return ast.copy_location(ast.Compare(left=left, ops=node.ops, comparators=rights), node)
+
+    def visit_Starred(self, node: ast.Starred) -> ast.expr:
+        value = self._call(G_STAR, [self.visit(node.value)], node.value)
+        return ast.copy_location(ast.Starred(value=value, ctx=node.ctx), node)
+
+    def _made(self, node: ast.expr) -> ast.expr:
+        return self._call(G_MADE, [self.generic_visit(node)], node)  # type: ignore[list-item]
+
+    def visit_List(self, node: ast.List) -> ast.expr:
+        return self._made(node) if isinstance(node.ctx, ast.Load) else node
+
+    def visit_Set(self, node: ast.Set) -> ast.expr:
+        return self._made(node)
+
+    def visit_Tuple(self, node: ast.Tuple) -> ast.expr:
+        if not isinstance(node.ctx, ast.Load) or all(
+            isinstance(e, ast.Constant) for e in node.elts
+        ):
+            return self.generic_visit(node)  # type: ignore[return-value]
+        return self._made(node)
+
+    def visit_Dict(self, node: ast.Dict) -> ast.expr:
+        values = [
+            self._call(G_STAR, [self.visit(v)], v) if k is None else self.visit(v)
+            for k, v in zip(node.keys, node.values, strict=True)
+        ]
+        keys = [self.visit(k) if k is not None else None for k in node.keys]
+        made = ast.copy_location(ast.Dict(keys=keys, values=values), node)
+        return self._call(G_MADE, [made], node)
+
+    def _comprehension(self, node: ast.expr, made: bool) -> ast.expr:
+        self._per.append(_counts(node))
+        try:
+            out = self.generic_visit(node)
+        finally:
+            self._per.pop()
+        return self._call(G_MADE, [out], node) if made else out  # type: ignore[list-item,return-value]
+
+    def visit_ListComp(self, node: ast.ListComp) -> ast.expr:
+        return self._comprehension(node, True)
+
+    def visit_SetComp(self, node: ast.SetComp) -> ast.expr:
+        return self._comprehension(node, True)
+
+    def visit_DictComp(self, node: ast.DictComp) -> ast.expr:
+        return self._comprehension(node, True)
+
+    def visit_GeneratorExp(self, node: ast.GeneratorExp) -> ast.expr:
+        return self._comprehension(node, False)
 
     def visit_comprehension(self, node: ast.comprehension) -> ast.comprehension:
+        nodes, names = self._per[-1]
+        args = [self.visit(node.iter), ast.Constant(nodes), ast.Constant(names)]
+        it = self._call(G_ITER, args, node.iter)
         return ast.comprehension(
-            target=self.visit(node.target),
-            iter=self._call(G_ITER, [self.visit(node.iter)], node.iter),
+            target=node.target,
+            iter=it,
             ifs=[self.visit(i) for i in node.ifs],
             is_async=node.is_async,
         )
 
+    def visit_JoinedStr(self, node: ast.JoinedStr) -> ast.expr:
+        parts: list[ast.expr] = []
+        for v in node.values:
+            if isinstance(v, ast.FormattedValue):
+                args = [
+                    self.visit(v.value),
+                    ast.Constant(v.conversion),
+                    ast.Constant(_spec_text(v.format_spec)),
+                ]
+                parts.append(self._call(G_FORMAT, args, v))
+            else:
+                parts.append(v)
+        return self._call(G_FSTRING, parts, node)
 
-_GUARDED_OPS = {ast.Add: "+", ast.Mult: "*", ast.Pow: "**", ast.LShift: "<<", ast.Mod: "%"}
-_OPERATORS = {
+
+_OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
     "+": operator.add,
+    "-": operator.sub,
     "*": operator.mul,
+    "/": operator.truediv,
+    "//": operator.floordiv,
+    "%": operator.mod,
     "**": operator.pow,
     "<<": operator.lshift,
-    "%": operator.mod,
+    ">>": operator.rshift,
+    "|": operator.or_,
+    "^": operator.xor,
+    "&": operator.and_,
+    "@": operator.matmul,
 }
+_UNARIES: dict[str, Callable[[Any], Any]] = {
+    "-": operator.neg,
+    "+": operator.pos,
+    "~": operator.invert,
+}
+_QUADRATIC = frozenset(("*", "/", "//", "%", "**"))
 _WIDTH = re.compile(r"(\d+)")
-_PERCENT = re.compile(r"%(?:\([^)]*\))?[#0 +-]*(\*|\d+)?(?:\.(\*|\d+))?")
 
 
 def _too_wide(spec: str) -> bool:
     """Whether a format spec (``>20``, ``.3f``, ``0999999999d``) asks for a field wider
     or more precise than :data:`MAX_TEXT` characters could hold."""
-    return any(len(n) > 7 or int(n) > MAX_TEXT for n in _WIDTH.findall(spec))
+    return any(len(n) > 8 or int(n) > MAX_TEXT for n in _WIDTH.findall(spec))
 
 
-def check(expression: str) -> CodeType:
+@dataclass(frozen=True)
+class Checked:
+    """An expression checked and compiled with its guards, and what one evaluation of
+    it costs besides its guarded operations."""
+
+    code: CodeType
+    nodes: int
+    names: int
+
+
+def checked(expression: str) -> Checked:
     """``expression`` (the text inside ``${...}`` or ``$(eval ...)``) checked and
     compiled with its guards; :class:`Refused` when it is not allowed or not valid."""
     text = expression.strip()
@@ -265,11 +436,17 @@ def check(expression: str) -> CodeType:
         raise Refused(f"expression nested more than {MAX_DEPTH} levels deep (refused)")
     for node in ast.walk(tree):
         _check_node(node)
+    nodes, names = _counts(tree)
     tree = ast.fix_missing_locations(_Rewrite().visit(tree))
     try:
-        return compile(tree, "<expression>", "eval")
+        return Checked(compile(tree, "<expression>", "eval"), nodes, names)
     except (SyntaxError, ValueError, RecursionError, MemoryError) as exc:
         raise Refused(f"invalid expression: {exc}") from None
+
+
+def check(expression: str) -> CodeType:
+    """:func:`checked`'s compiled code."""
+    return checked(expression).code
 
 
 # -- run-time guards --------------------------------------------------------------------
@@ -286,55 +463,72 @@ for _cls in (int, float, complex, bool, bytes, tuple, range, set, frozenset, lis
 _PLAIN_TYPES[str] = _public(str, drop=("format_map",))
 
 
-def _format_fields_plain(fmt: str, depth: int = 0) -> bool:
+def _format_fields_plain(fmt: str) -> bool:
     """Whether no replacement field of ``fmt`` walks attributes or items (``{0.x}``,
     ``{0[k]}``): that is how ``str.format`` reaches an object's internals."""
-    if depth > 2:
-        return False
     try:
         for _, field, spec, _ in string.Formatter().parse(fmt):
             if field is not None and ("." in field or "[" in field):
                 return False
             if spec and _too_wide(spec):
                 return False
-            if spec and "{" in spec and not _format_fields_plain(spec, depth + 1):
+            if spec and "{" in spec and not _format_fields_plain(spec):
                 return False
-    except ValueError:
+    except (ValueError, RecursionError):
         return True  # str.format itself will report the malformed format string
     return True
 
 
+_SETS: Any = (set, frozenset, dict, type({}.keys()), type({}.items()))
+
+
 class Guards:
-    """The attribute and subscript guards for one expansion."""
+    """The guards for one expansion: what every rewritten operation calls."""
 
     def __init__(
-        self, namespaces: dict[int, str], namespace_type: Any, yaml_dict: type, table_type: Any
+        self,
+        namespaces: dict[int, str],
+        namespace_type: Any,
+        yaml_dict: type,
+        table_type: Any,
+        yaml_list: type = list,
     ):
         self.namespaces = namespaces  # id of xacro's global NameSpace -> its name
         self.namespace_type = namespace_type
         self.yaml_dict = yaml_dict
+        self.yaml_list = yaml_list
         self.table_type = table_type
+        self.budget = Budget(table_type)
+        self.bounded = Bounded(self.budget, self.call, self.binop, copying=(yaml_list,))
+        self.depth = 0  # scopes the expression being evaluated looks names up through
 
     def attr(self, obj: Any, name: str) -> Any:
+        self.budget.work(OPERATION)
         if name.startswith("_"):
             raise _not_allowed(f".{name}")
         if isinstance(obj, self.table_type):
             return self._namespace_attr(obj, name)
         kind = type(obj)
         if isinstance(obj, self.yaml_dict) and not hasattr(dict, name):
-            return getattr(obj, name)  # a YAML key, as xacro's dotted access
+            return self._copied(getattr(obj, name))  # a YAML key, as xacro's dotted access
         for base in (kind, *kind.__mro__[1:]):
             allowed = _PLAIN_TYPES.get(base)
             if allowed is None:
                 continue
             if name not in allowed:
                 break
-            if base is str and name == "format" and not _format_fields_plain(obj):
-                raise _not_allowed("'{...}'.format with '.' or '[' in a field")
-            if base is str and name in _GROWING:
-                return _bounded_method(obj, name)
-            return getattr(obj, name)
+            if base is str and name == "format":
+                self.budget.work(text_steps(len(obj)) + obj.count("{") * WALK_STEPS)
+                if not _format_fields_plain(obj):
+                    raise _not_allowed("'{...}'.format with '.' or '[' in a field")
+            return self.bounded.method(obj, base, name)
         raise _not_allowed(f"{_describe(obj)}.{name}")
+
+    def _copied(self, value: Any) -> Any:
+        """A YAML value xacro's wrapper hands out (a list or dict it copies each time)."""
+        if isinstance(value, list | dict):
+            return self.budget.made(value)
+        return value
 
     def _namespace_attr(self, obj: Any, name: str) -> Any:
         glob = self.namespaces.get(id(obj))
@@ -345,6 +539,7 @@ class Guards:
         return self.namespace_type.__getattr__(obj, name)  # xacro's own dotted lookup
 
     def item(self, obj: Any, key: Any) -> Any:
+        self.budget.work(OPERATION)
         if isinstance(obj, self.table_type):
             glob = self.namespaces.get(id(obj))
             if isinstance(key, str) and key.startswith("_"):
@@ -353,35 +548,108 @@ class Guards:
                 raise _not_allowed(f"{glob}[{key!r}]")
             return obj[key]
         if isinstance(obj, str | bytes | list | tuple | dict | range):
-            return obj[key]
+            if isinstance(obj, dict):
+                self.budget.walk(key)  # hashed and compared
+            result = obj[key]
+            if isinstance(key, slice):
+                return self.budget.made(result)
+            if isinstance(obj, self.yaml_dict | self.yaml_list):
+                return self._copied(result)
+            return result
         raise _not_allowed(f"{_describe(obj)}[...]")
 
-    iterations = 0
-    """Comprehension iterations so far in this expansion."""
-
     def call(self, func: Any, /, *args: Any, **kwargs: Any) -> Any:
-        if func in _BIG_NUMBER_FUNCTIONS and any(
-            isinstance(a, int) and a > MAX_FACTORIAL for a in args
-        ):
-            raise Refused(f"{func.__name__} of more than {MAX_FACTORIAL} (refused: too costly)")
-        result = func(*args, **kwargs)
-        _check_size(result)
-        return result
+        self.budget.work(OPERATION + len(args) + len(kwargs))
+        bounded = self.bounded.lookup(func)
+        if bounded is not None:
+            return bounded(*args, **kwargs)
+        if type(func) is Method or not callable(func):
+            return func(*args, **kwargs)  # a bounded method; or Python's own TypeError
+        raise _not_allowed(f"calling {_describe(func)}")
 
     def binop(self, op: str, a: Any, b: Any) -> Any:
+        budget = self.budget
+        budget.work(OPERATION)
         _check_operands(op, a, b)
-        result = _OPERATORS[op](a, b)
-        _check_size(result)
-        return result
-
-    def iterate(self, iterable: Any) -> Iterator[Any]:
-        for item in iterable:
-            self.iterations += 1
-            if self.iterations > MAX_ITERATIONS:
-                raise Refused(
-                    f"comprehensions ran more than {MAX_ITERATIONS} iterations (refused)"
+        if op == "%" and isinstance(a, str | bytes):
+            size = self.bounded.percent_size(a, b)
+            if size > MAX_TEXT:
+                raise too_big(
+                    f"a %-format of up to {size:,} characters", f"{MAX_TEXT:,} characters"
                 )
+            budget.work(text_steps(size))
+        elif isinstance(a, int) and isinstance(b, int):
+            if op == "**" and b > 0:
+                digits = abs(a).bit_length() * b // 30 + 1
+                budget.work(digits * digits // 16)
+            else:
+                budget.work(int_steps(a, b, op in _QUADRATIC))
+        elif isinstance(a, _SETS) or isinstance(b, _SETS):
+            budget.walk(a)  # each item hashed
+            budget.walk(b)
+        return budget.made(_OPERATORS[op](a, b))
+
+    def unary(self, op: str, x: Any) -> Any:
+        self.budget.work(OPERATION + (int_steps(x, 0, False) if isinstance(x, int) else 0))
+        return self.budget.made(_UNARIES[op](x))
+
+    def compare(self, x: Any, search: bool) -> Any:
+        """An operand of a comparison: comparing (``==``, ``<``, ``in``) walks it, and
+        ``in`` searches a text for a substring."""
+        if search and isinstance(x, str | bytes):
+            self.budget.work(OPERATION // 2 + search_steps(len(x)))
+            return x
+        if search and isinstance(x, range):  # 2.5 in range(n) compares with every item
+            self.budget.work(OPERATION // 2 + 3 * len(x))
+            return x
+        self.budget.work(OPERATION // 2)
+        return self.budget.walk(x)
+
+    def iterate(self, iterable: Any, nodes: int, names: int) -> Iterator[Any]:
+        per = OPERATION + nodes + names * NAME_STEPS * (1 + self.depth)
+        budget = self.budget
+        copying = isinstance(iterable, self.yaml_list)
+        for item in iterable:
+            budget.work(per)
+            if copying:
+                budget.walk(item)
             yield item
+
+    def made(self, value: Any) -> Any:
+        return self.budget.made(value)
+
+    def unpack(self, value: Any) -> Any:
+        """``*value`` or ``**value``: its items are copied into a new call or display."""
+        try:
+            n = len(value)
+        except TypeError:
+            return value  # an iterator: each item it yields is charged as it is made
+        self.budget.work(1 + n)
+        self.budget.hold(8 * n)
+        return value
+
+    def format(self, value: Any, conversion: int, spec: str) -> str:
+        """One field of an f-string, as Python formats it (``f'{x!r:>10}'``)."""
+        size = self.bounded.field_size(value, conversion, spec)
+        if size > MAX_TEXT:
+            raise too_big(
+                f"an f-string field of up to {size:,} characters", f"{MAX_TEXT:,} characters"
+            )
+        self.budget.work(OPERATION + text_steps(size))
+        if conversion == ord("s"):
+            value = str(value)
+        elif conversion == ord("r"):
+            value = repr(value)
+        elif conversion == ord("a"):
+            value = ascii(value)
+        return self.budget.made(builtins.format(value, spec))
+
+    def fstring(self, *parts: str) -> str:
+        size = sum(len(p) for p in parts)
+        if size > MAX_TEXT:
+            raise too_big(f"an f-string of {size:,} characters", f"{MAX_TEXT:,} characters")
+        self.budget.work(OPERATION + text_steps(size))
+        return self.budget.made("".join(parts))
 
     def guard_builtins(self, extra: dict[str, Any] | None = None) -> dict[str, Any]:
         out = _Builtins(extra or {})
@@ -392,85 +660,47 @@ class Guards:
                 G_SLICE: slice,
                 G_CALL: self.call,
                 G_BINOP: self.binop,
+                G_UNARY: self.unary,
+                G_CMP: self.compare,
                 G_ITER: self.iterate,
+                G_MADE: self.made,
+                G_STAR: self.unpack,
+                G_FORMAT: self.format,
+                G_FSTRING: self.fstring,
             }
         )
         return out
 
 
-_BIG_NUMBER_FUNCTIONS = (math.factorial, math.comb, math.perm)
 _SEQUENCES = (str, bytes, list, tuple)
 
 
-def _too_big(what: str) -> Refused:
-    return Refused(f"{what} (refused: an expression may not make something this large)")
-
-
-def _check_size(value: Any) -> None:
-    """Refuse a result past the bounds (cheap: a length or a bit count)."""
+def _limit(value: Any) -> tuple[int, str]:
     if isinstance(value, str | bytes):
-        if len(value) > MAX_TEXT:
-            raise _too_big(f"text of {len(value)} characters")
-    elif isinstance(value, range | list | tuple | set | frozenset | dict):
-        if len(value) > MAX_ITEMS:
-            raise _too_big(f"a {type(value).__name__} of {len(value)} items")
-    elif isinstance(value, int) and value.bit_length() > MAX_INT_BITS:
-        raise _too_big(f"an integer of {value.bit_length()} bits")
-
-
-def _limit(value: Any) -> int:
-    return MAX_TEXT if isinstance(value, str | bytes) else MAX_ITEMS
+        return MAX_TEXT, f"{MAX_TEXT:,} characters"
+    return MAX_ITEMS, f"{MAX_ITEMS:,} items"
 
 
 def _check_operands(op: str, a: Any, b: Any) -> None:
     """Refuse ``a op b`` whose result would be past the bounds, before computing it."""
     ints = isinstance(a, int) and isinstance(b, int)
     if op == "+" and isinstance(a, _SEQUENCES) and isinstance(b, _SEQUENCES):
-        if len(a) + len(b) > _limit(a):
-            raise _too_big(f"joining {len(a)} and {len(b)} items")
+        limit, bound = _limit(a)
+        if len(a) + len(b) > limit:
+            raise too_big(f"joining {len(a):,} and {len(b):,} items", bound)
     elif op == "*":
         seq, n = (a, b) if isinstance(a, _SEQUENCES) else (b, a)
-        if isinstance(seq, _SEQUENCES) and isinstance(n, int) and len(seq) * n > _limit(seq):
-            raise _too_big(f"{len(seq)} items repeated {n} times")
+        if isinstance(seq, _SEQUENCES) and isinstance(n, int):
+            limit, bound = _limit(seq)
+            if len(seq) * n > limit:
+                raise too_big(f"{len(seq):,} items repeated {n:,} times", bound)
         if ints and a.bit_length() + b.bit_length() > MAX_INT_BITS:
-            raise _too_big("a product of this size")
+            raise too_big("a product of this size", f"{MAX_INT_BITS:,} bits")
     elif op == "**" and ints and b > 0 and abs(a) > 1:
         if a.bit_length() * b > MAX_INT_BITS:
-            raise _too_big(f"a power of {b}")
+            raise too_big(f"a power of {b:,}", f"{MAX_INT_BITS:,} bits")
     elif op == "<<" and ints and b > MAX_INT_BITS:
-        raise _too_big(f"a shift by {b}")
-    elif op == "%" and isinstance(a, str | bytes):
-        fmt = a if isinstance(a, str) else a.decode("latin-1")
-        for m in _PERCENT.finditer(fmt):
-            for n in m.groups():
-                if n == "*" or (n is not None and (len(n) > 7 or int(n) > MAX_TEXT)):
-                    raise _too_big("a %-format field this wide")
-
-
-_GROWING = ("ljust", "rjust", "center", "zfill", "expandtabs", "replace")
-
-
-def _bounded_method(text: str, name: str) -> Callable[..., Any]:
-    """``text.name`` that refuses, before running, a result past :data:`MAX_TEXT`."""
-    method = getattr(text, name)
-
-    def bounded(*args: Any, **kwargs: Any) -> Any:
-        size = len(text)
-        if name in ("ljust", "rjust", "center", "zfill") and args and isinstance(args[0], int):
-            size = max(size, args[0])
-        elif name == "expandtabs":
-            tab = args[0] if args else kwargs.get("tabsize", 8)
-            size = len(text) * max(1, tab if isinstance(tab, int) else 1)
-        elif name == "replace" and len(args) >= 2:
-            old, new = args[0], args[1]
-            if isinstance(old, str) and isinstance(new, str):
-                count = text.count(old) if old else len(text) + 1
-                size = len(text) + count * max(0, len(new) - len(old))
-        if size > MAX_TEXT:
-            raise _too_big(f"text of {size} characters")
-        return method(*args, **kwargs)
-
-    return bounded
+        raise too_big(f"a shift by {b:,}", f"{MAX_INT_BITS:,} bits")
 
 
 class _Builtins(dict):
@@ -499,298 +729,6 @@ def _check_shadowing(symbols: Any) -> None:
     for name in _GUARD_NAMES:
         if name in symbols:
             raise Refused(f"the name '{name}' is reserved")
-
-
-# -- where an expression is written -----------------------------------------------------
-
-_ENTITIES = {
-    "<": "(?:<|&lt;)",
-    ">": "(?:>|&gt;)",
-    "&": "(?:&|&amp;)",
-    '"': '(?:"|&quot;)',
-    "'": "(?:'|&apos;)",
-}
-
-
-def _pattern(written: str) -> re.Pattern[str] | None:
-    """A regex finding ``written`` in XML source: whitespace may be any whitespace
-    (attribute values are normalized), ``<`` may be ``&lt;`` and so on."""
-    tokens = written.split()[:12]
-    if not tokens:
-        return None
-    parts = ["".join(_ENTITIES.get(c, re.escape(c)) for c in tok) for tok in tokens]
-    return re.compile(r"\s+".join(parts))
-
-
-def locate(written: str, files: Sequence[str | None]) -> tuple[str | None, int | None]:
-    """The first of ``files`` holding ``written``, and the line where it starts. What
-    was evaluated may differ from what was written (``$(arg)`` and ``${}`` inside it
-    are substituted first): then the longest prefix of it that is found."""
-    texts = []
-    for f in dict.fromkeys(f for f in files if f):
-        try:
-            texts.append((f, untrusted.read_file(f, "description").decode("utf-8", "replace")))
-        except (ConversionError, OSError):
-            continue
-    for size in (len(written), 40, 20, 11):
-        pattern = _pattern(written[:size])
-        for f, text in texts:
-            match = pattern.search(text) if pattern else None
-            if match:
-                return f, text.count("\n", 0, match.start()) + 1
-    return next((f for f in files if f), None), None
-
-
-# -- installing the guards into xacro ---------------------------------------------------
-
-
-class _Installer:
-    def __init__(self, xacro: Any, roots: Callable[[], Sequence[Path]], source: Path):
-        self.x = xacro
-        self.roots = roots
-        self.source = source
-        glob = xacro._global_symbols
-        self.namespaces = {id(glob[n]): n for n in NAMESPACE_ALLOWED}
-        self.guards = Guards(self.namespaces, xacro.NameSpace, xacro.YamlDictWrapper, xacro.Table)
-        self.expr_builtins = self.guards.guard_builtins()  # ${...}: none but the guards, as stock
-        allowed = {k: getattr(builtins, k) for k in EVAL_BUILTINS}
-        self.eval_builtins = self.guards.guard_builtins(allowed)
-
-    # where errors point
-    def _files(self) -> list[str | None]:
-        x = self.x
-        stack = list(x.filestack or [])
-        files: list[str | None] = stack[-1:]
-        for macro in reversed(x.macrostack or []):
-            if macro.history and macro.history[-1]:
-                files.append(macro.history[-1][-1])
-        files += list(reversed(stack)) + list(x.all_includes) + [str(self.source)]
-        return files
-
-    def error(self, written: str, reason: str) -> XacroError:
-        file, line = locate(written, self._files())
-        return XacroError(
-            f"{untrusted.excerpt(written)}: {reason}",
-            file=file or self.source,
-            element=f"line {line}" if line else None,
-        )
-
-    # ${...}
-    def safe_eval(self, expr: str, globals: Any, locals: Any = None) -> Any:
-        written = "${" + expr + "}"
-        try:
-            code = check(expr)
-            _check_shadowing(globals)
-            globals.update(__builtins__=self.expr_builtins)  # as stock, plus the guards
-            return eval(code, globals, locals)
-        except Refused as exc:
-            raise self.error(written, exc.reason) from None
-
-    # $(eval ...)
-    def eval_extension(self, s: str, context: dict) -> str:
-        from xacro import substitution_args as sa
-
-        if "arg" not in context:
-            context["arg"] = {}
-
-        def arg(name: str) -> Any:
-            return sa.convert_value(sa._eval_arg(name, args=context["arg"]), "auto")
-
-        def dirname() -> str:
-            return sa._eval_dirname(context["filename"])
-
-        functions = {"arg": arg, "dirname": dirname}
-        functions.update(sa._eval_dict)
-        if s.find("__") >= 0:  # stock xacro's own rule, kept so its errors stay the same
-            raise sa.SubstitutionException(
-                "$(eval ...) may not contain double underscore expressions"
-            )
-        written = f"$(eval {s})"
-        try:
-            code = check(s)
-            _check_shadowing(context["arg"])
-            globs = {"__builtins__": self.eval_builtins}
-            return str(eval(code, globs, sa._DictWrapper(context["arg"], functions)))
-        except Refused as exc:
-            raise self.error(written, exc.reason) from None
-
-    # what an attribute or a property expands to; macro calls; includes
-    def eval_text(self, original: Callable[..., Any]) -> Callable[..., Any]:
-        def eval_text(text: Any, symbols: Any) -> Any:
-            result = original(text, symbols)
-            if isinstance(result, str) and len(result) > MAX_TEXT:
-                raise self.error(
-                    str(text), f"expands to {len(result)} characters, over {MAX_TEXT} (refused)"
-                )
-            return result
-
-        return eval_text
-
-    def counted(
-        self, original: Callable[..., Any], limit: int, what: str, count: list[int]
-    ) -> Callable[..., Any]:
-        # Counted as each returns true: xacro asks handle_macro_call of every element
-        # whether it is a macro call (false for plain ones, which do not count)
-        def counted(*args: Any, **kwargs: Any) -> Any:
-            result = original(*args, **kwargs)
-            if result is False:
-                return result
-            count[0] += 1
-            if count[0] > limit:
-                raise XacroError(
-                    f"more than {limit} {what} in one expansion (refused: a description "
-                    "that multiplies itself)",
-                    file=self.x.filestack[-1] if self.x.filestack else self.source,
-                )
-            return result
-
-        return counted
-
-    # xacro.load_yaml
-    def load_yaml(self, filename: Any) -> Any:
-        x = self.x
-        path = x.abs_filename_spec(str(filename))
-        self._inside_packages(path)
-        try:
-            data = untrusted.read_file(path, "yaml", error=XacroError, what="YAML file")
-        except XacroError as exc:
-            raise Refused(exc.detail) from None
-        x.filestack.append(path)
-        try:
-            loader = _unit_loader(x)(data)
-            try:
-                node = loader.get_single_node()
-                if node is not None:
-                    untrusted.check_yaml_size(node)
-                value = loader.construct_document(node) if node is not None else None
-            finally:
-                loader.dispose()
-            return x.YamlListWrapper.wrap(value)
-        except untrusted.YamlBombError as exc:
-            raise Refused(f"YAML file {path} {exc}") from None
-        finally:
-            x.filestack.pop()
-            x.all_includes.append(path)
-
-    def _inside_packages(self, path: str) -> None:
-        real = os.path.realpath(path)
-        roots = _allowed_roots(self.roots())
-        if not any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots):
-            shown = ", ".join(sorted(set(roots))[:4]) or "none"
-            raise Refused(
-                f"load_yaml of {path}: outside the description's packages ({shown}); "
-                "only YAML files inside them are read"
-            )
-
-    # xacro:include (and the source file)
-    def parse(self, original: Callable[..., Any]) -> Callable[..., Any]:
-        x = self.x
-
-        def parse(inp: Any, filename: str | None = None) -> Any:
-            if inp is None and filename is not None:
-                path = os.path.join(x.root_dir, filename)
-                try:
-                    os.stat(path)
-                except (OSError, ValueError):
-                    return original(inp, filename)  # missing: xacro's own error (optional=)
-                data = self._read_include(path, filename)
-                inp = io.TextIOWrapper(io.BytesIO(data))  # as open() would decode it
-            return original(inp, filename)
-
-        return parse
-
-
-    def _read_include(self, path: str, filename: str) -> bytes:
-        """An included file's bytes; a FIFO, device or oversized file is an error naming
-        the including file and the line of the include."""
-        try:
-            return untrusted.read_file(path, "description", error=XacroError, what="file")
-        except XacroError as exc:
-            stack = list(self.x.filestack or [])
-            parents = stack[:-1] if stack and stack[-1] == filename else stack
-            if not parents or parents == [None]:
-                raise  # the source file itself
-            file, line = locate(os.path.basename(filename), parents[-1:])
-            where = f"line {line}: xacro:include" if line else "xacro:include"
-            raise XacroError(exc.detail, file=file, element=where) from None
-
-
-def _allowed_roots(folders: Sequence[Path]) -> list[str]:
-    """Each folder (real path) and, where its package.xml is a symlink to another
-    package.xml (colcon --symlink-install), that file's folder."""
-    out = []
-    for folder in folders:
-        out.append(os.path.realpath(folder))
-        manifest = Path(folder) / "package.xml"
-        if manifest.is_symlink():
-            target = os.path.realpath(manifest)
-            if os.path.basename(target) == "package.xml":
-                out.append(os.path.dirname(target))
-    return out
-
-
-def _unit_loader(x: Any) -> type:
-    """A SafeLoader with xacro's ``!degrees``-style unit tags, on a private subclass
-    (stock xacro adds them to yaml.SafeLoader for the whole process)."""
-    import yaml
-
-    class UnitLoader(yaml.SafeLoader):
-        pass
-
-    for unit in x.ConstructUnits:
-        UnitLoader.add_constructor(unit.value.tag, unit.constructor)
-    return UnitLoader
-
-
-@contextmanager
-def installed(roots: Callable[[], Sequence[Path]], source: Path) -> Iterator[None]:
-    """Checked expressions, confined ``load_yaml``, checked includes, for one expansion.
-    ``roots()`` is the folders whose YAML files ``load_yaml`` may read. Call it under
-    the lock that serializes xacro; everything is restored on exit."""
-    import xacro
-    from xacro import substitution_args as sa
-
-    inst = _Installer(xacro, roots, source)
-    glob = xacro._global_symbols
-    xacro_ns = glob["xacro"]
-    saved = (
-        xacro.safe_eval,
-        xacro.parse,
-        sa._eval,
-        xacro.eval_text,
-        xacro.handle_macro_call,
-        xacro.process_include,
-        dict.get(xacro_ns, "load_yaml"),
-        glob.get("load_yaml"),
-        glob.get("__builtins__", _MISSING),
-    )
-
-    def deprecated_load_yaml(filename: Any) -> Any:
-        xacro.warning("Using load_yaml() directly is deprecated. Use xacro.load_yaml() instead.")
-        return inst.load_yaml(filename)
-
-    xacro.safe_eval = inst.safe_eval
-    xacro.parse = inst.parse(saved[1])
-    sa._eval = inst.eval_extension
-    xacro.eval_text = inst.eval_text(saved[3])
-    xacro.handle_macro_call = inst.counted(saved[4], MAX_MACRO_CALLS, "macro calls", [0])
-    xacro.process_include = inst.counted(saved[5], MAX_INCLUDES, "includes", [0])
-    dict.__setitem__(xacro_ns, "load_yaml", inst.load_yaml)
-    glob["load_yaml"] = deprecated_load_yaml
-    try:
-        yield
-    finally:
-        xacro.safe_eval, xacro.parse, sa._eval = saved[:3]
-        xacro.eval_text, xacro.handle_macro_call, xacro.process_include = saved[3:6]
-        dict.__setitem__(xacro_ns, "load_yaml", saved[6])
-        glob["load_yaml"] = saved[7]
-        if saved[8] is _MISSING:
-            glob.pop("__builtins__", None)
-        else:
-            glob["__builtins__"] = saved[8]
-
-
-_MISSING = object()
 
 
 def trust_from_env(environ: Any = None) -> bool:
