@@ -432,3 +432,18 @@ def test_a_mesh_found_by_name_in_a_sibling_meshes_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     _assert_uses(out, mesh, 1)
     assert len(_warnings(proc, "in the meshes folder one folder up")) == 1, proc.stderr
+
+
+def test_a_certificate_never_passes_silently_over_meshes_it_could_not_find(tmp_path):
+    mesh = _mesh(tmp_path / "robot" / "meshes" / "base.stl")
+    src = _urdf(tmp_path / "robot" / "robot.urdf", str(mesh), "nowhere/lost_a.stl", "nowhere/lost_b.stl")
+    out = tmp_path / "out" / "robot.xml"
+    proc = _convert(src, out)
+    assert proc.returncode == 0, proc.stderr
+    line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("certificate:"))
+    assert line.startswith("certificate: passed"), line
+    assert line.endswith(
+        "; the description's flaw: 2 meshes it names were not found or not readable and "
+        "are missing from the model (see the warnings)"
+    ), line
+    assert len([ln for ln in proc.stderr.splitlines() if "lost_" in ln and "dropped" in ln]) == 2

@@ -114,7 +114,7 @@ class Certificate:
         if self.failures:
             shown = "; ".join(self.failures[:3])
             more = f"; and {len(self.failures) - 3} more" if len(self.failures) > 3 else ""
-            return f"certificate: FAILED: {shown}{more}{disagreement}"
+            return f"certificate: FAILED: {shown}{more}{disagreement}{self.dropped()}"
         f = self.sections.get("frames", {})
         m = self.sections.get("mass", {})
         n = len(self.changes)
@@ -122,7 +122,26 @@ class Certificate:
             f"certificate: passed (frames {f.get('max_position_error_m', 0):.1g} m / "
             f"{f.get('max_rotation_error_rad', 0):.1g} rad, mass {m.get('mjcf_kg', 0):.3f} kg = "
             f"{m.get('urdf_kg', 0) + m.get('added_kg', 0) - m.get('welded_kg', 0):.3f} kg, "
-            f"{n} change{'' if n == 1 else 's'}){disagreement}"
+            f"{n} change{'' if n == 1 else 's'}){disagreement}{self.dropped()}"
+        )
+
+    def dropped(self) -> str:
+        """``; the description's flaw: 3 meshes it names were not found ...``: what a
+        passing certificate cannot vouch for, or "" when every mesh was found."""
+        lost = [
+            c
+            for c in self.changes
+            if c.get("kind") == "warning"
+            and " mesh '" in str(c.get("element", ""))
+            and str(c.get("message", "")).endswith("dropped")
+        ]
+        if not lost:
+            return ""
+        n = len(lost)
+        return (
+            f"; the description's flaw: {n} mesh{'' if n == 1 else 'es'} it names "
+            f"{'was' if n == 1 else 'were'} not found or not readable and "
+            f"{'is' if n == 1 else 'are'} missing from the model (see the warnings)"
         )
 
     def disagreement(self) -> str:
