@@ -22,16 +22,17 @@ import re
 import secrets
 import shutil
 import socket
+import stat
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, BinaryIO
 
 from .errors import ConversionError, OutputError
-from .untrusted import read_file
+from .untrusted import limit_bytes, read_file
 
 log = logging.getLogger(__name__)
 
@@ -153,7 +154,16 @@ def check_target(output: Path, overwrite: bool, extra: tuple[str, ...] = ()) -> 
     if output.is_dir():
         raise OutputError("output is a directory; give the .xml file to write", file=output)
     for path in (output, *(output.parent / name for name in extra)):
-        if os.path.lexists(path) and not overwrite:
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            continue  # nothing there (a folder we cannot read fails when it is written)
+        if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):  # never opened, never replaced
+            raise OutputError(
+                f"is {_kind(mode)}, not a regular file; refused, even with --overwrite",
+                file=path,
+            )
+        if not overwrite:
             raise OutputError("already exists; pass --overwrite to replace it", file=path)
     clean_stale(output.parent, "urdf2mjcf")
 
@@ -214,12 +224,24 @@ def _home(output: Path) -> Path:
 class _FilesInstall:
     """Staged files moved into ``folder`` and, until :meth:`discard`, the earlier files
     they replaced (hard links in the staging folder), so :meth:`rollback` can put them
-    back."""
+    back. ``created``: the folders made for ``folder`` (deepest first), removed by
+    :meth:`discard` when the install never happened or was rolled back: a failed run
+    leaves no folder it made."""
 
-    def __init__(self, stage: Path, folder: Path, order: list[str], made: list[Path]):
+    def __init__(
+        self,
+        stage: Path,
+        folder: Path,
+        order: list[str],
+        made: list[Path],
+        created: Sequence[Path] = (),
+    ):
         self.stage, self.folder, self.order, self.made = stage, folder, order, made
+        self.created = list(created)
         self.placed: list[tuple[str, bool]] = []
         self.dirs: list[list[Path]] = []
+        self.done = False
+        """Installed for good (the run succeeded): its folders stay."""
 
     def install(self) -> None:
         backup = self.stage / _BACKUP
@@ -249,6 +271,8 @@ class _FilesInstall:
 
     def discard(self) -> None:
         _remove_all(self.made)
+        if not self.done:
+            _remove_if_empty(self.created)
 
 
 class Together:
@@ -271,6 +295,8 @@ class Together:
                 inst.install()
             for step in self.finally_:
                 step()
+            for inst in done:
+                inst.done = True
         except BaseException:
             for inst in reversed(done):
                 inst.rollback()
@@ -323,13 +349,14 @@ def write_atomic(
             path.write_bytes(data)
         validate(stage / output.name)
         order = sorted(files, key=lambda rel: (rel == output.name, "/" not in rel, rel))
-        inst = _FilesInstall(stage, folder, order, made)
+        inst = _FilesInstall(stage, folder, order, made, created)
         batch = _TOGETHER.get()
         if batch is not None:
             batch.installs.append(inst)  # it installs, and removes the stage, at its end
             made = []
         else:
             inst.install()
+            inst.done = True
         return [folder / rel for rel in order]
     except BaseException:
         if inst is not None:
@@ -354,41 +381,137 @@ def _json_object(path: Path) -> dict | None:
     return data if isinstance(data, dict) else None
 
 
+def _kind(mode: int) -> str:
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def read_own(path: Path, reader: Callable[[BinaryIO], Any]) -> Any:
+    """``reader`` of the regular file at ``path`` (opened without blocking, not through
+    a symlink, checked again once open), or None: a FIFO, a device, a socket or a
+    symlink at an output path is never opened to see whether it is ours (a FIFO
+    would block the run before it starts)."""
+    flags = os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb") as f:
+            fd = -1
+            return reader(f)
+    except Exception:  # noqa: BLE001 (not ours, whatever it holds: truncated, not the format)
+        return None
+    finally:
+        if fd >= 0:
+            os.close(fd)
+
+
+def check_output_file(
+    path: Path,
+    overwrite: bool,
+    ours: Callable[[BinaryIO], bool],
+    not_ours: str,
+    element: str | None = None,
+) -> None:
+    """Before the work: may we write the file ``path``? Every output file's one check.
+
+    Nothing there: yes. A folder: no. A FIFO, a device or a socket: never, not even
+    with ``overwrite`` (it is never opened, nor replaced: ``--report /dev/null`` must
+    not replace the device). A symlink (even a dangling one): only with ``overwrite``,
+    which replaces the link, never its target. A regular file: with ``overwrite``, or
+    when ``ours`` (given the file, opened by :func:`read_own`) says we wrote it;
+    else an OutputError saying it ``not_ours`` ("is not a report of rover-drive")."""
+    if path.is_dir():
+        raise OutputError("is a folder; give the file to write", file=path, element=element)
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise OutputError(
+            f"cannot write here: {exc.strerror or exc}", file=path, element=element
+        ) from None
+    if stat.S_ISLNK(mode):
+        if not overwrite:
+            raise OutputError(
+                "already exists (a symlink); pass --overwrite to replace the link (its "
+                "target is never written)",
+                file=path,
+                element=element,
+            )
+        return
+    if not stat.S_ISREG(mode):
+        raise OutputError(
+            f"is {_kind(mode)}, not a regular file; refused, even with --overwrite (it is "
+            "never opened or replaced)",
+            file=path,
+            element=element,
+        )
+    if not overwrite and read_own(path, ours) is not True:
+        raise OutputError(
+            f"already exists and {not_ours}; pass --overwrite to replace it",
+            file=path,
+            element=element,
+        )
+
+
+def _json_of(f: BinaryIO) -> dict | None:
+    data = json.loads(f.read(limit_bytes("report") + 1).decode("utf-8"))
+    return data if isinstance(data, dict) else None
+
+
 def check_file(path: Path, overwrite: bool, generator: str) -> None:
-    """Before the work: refuse to write ``path`` over a file we did not write (a
-    symlink, even a dangling one, is not ours).
+    """Before the work: refuse to write ``path`` over a file we did not write
+    (:func:`check_output_file`).
 
     A file is ours when it is a JSON object whose ``"generator"`` is ``generator``."""
-    if path.is_dir():
-        raise OutputError("is a folder; give the file to write", file=path)
-    if os.path.lexists(path) and not overwrite:
-        data = None if path.is_symlink() else _json_object(path)
-        if data is None or data.get("generator") != generator:
-            raise OutputError(
-                f"already exists and is not a report of {generator}; "
-                "pass --overwrite to replace it",
-                file=path,
-            )
+
+    def ours(f: BinaryIO) -> bool:
+        data = _json_of(f)
+        return data is not None and data.get("generator") == generator
+
+    check_output_file(path, overwrite, ours, f"is not a report of {generator}")
 
 
 class Reserved:
     """A temporary file beside ``path``, made before the work so that a folder we cannot
     write in fails the run before any output is installed; :meth:`commit` renames it
-    into place."""
+    into place, :meth:`discard` removes it (and the folders made for it). Its name holds
+    our process id: after a kill -9 the next run writing beside it removes it
+    (:func:`clean_stale`)."""
 
-    def __init__(self, path: Path, tmp: Path):
+    def __init__(self, path: Path, tmp: Path, created: Sequence[Path] = ()):
         self.path, self.tmp = path, tmp
+        self.created = list(created)
         self.committed = False
 
     def write(self, data: bytes) -> None:
-        with open(self.tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        try:
+            with open(self.tmp, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError as exc:  # a full disk, a quota: said naming the file, nothing left
+            raise OutputError(f"cannot write: {exc.strerror or exc}", file=self.path) from None
 
     def commit(self) -> None:
         os.replace(self.tmp, self.path)
         self.committed = True
+
+    def discard(self) -> None:
+        """Remove the temporary file unless it was committed (then: nothing to do)."""
+        if not self.committed:
+            self.tmp.unlink(missing_ok=True)
+            _remove_if_empty(self.created)
 
 
 def _temp_file(path: Path, made: list[Path]) -> Path:
@@ -405,27 +528,38 @@ def _temp_file(path: Path, made: list[Path]) -> Path:
         return tmp
 
 
-@contextmanager
-def reserved_file(path: Path) -> Iterator[Reserved]:
-    """Reserve ``path`` (see :class:`Reserved`): made now, renamed by ``commit``, removed
-    (with the parent folders made for it) when the block ends without one."""
+def reserve(path: Path) -> Reserved:
+    """Reserve ``path`` (see :class:`Reserved`): its temporary file made now, what a
+    killed run left beside it removed first; the caller commits or discards it."""
     path = Path(path)
-    created = _make_parents(path.parent)
-    clean_stale(path.parent, path.name)
-    made: list[Path] = []
-    res: Reserved | None = None
     try:
+        created = _make_parents(path.parent)
+    except OSError as exc:
+        raise OutputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
+    made: list[Path] = []
+    try:
+        clean_stale(path.parent, path.name)
         try:
             tmp = _temp_file(path, made)
         except OSError as exc:  # a folder we cannot write in: said before the work
             raise OutputError(f"cannot write here: {exc.strerror}", file=path) from None
-        res = Reserved(path, tmp)
+    except BaseException:
+        for tmp in made:
+            tmp.unlink(missing_ok=True)
+        _remove_if_empty(created)
+        raise
+    return Reserved(path, tmp, created)
+
+
+@contextmanager
+def reserved_file(path: Path) -> Iterator[Reserved]:
+    """Reserve ``path`` (see :class:`Reserved`): made now, renamed by ``commit``, removed
+    (with the parent folders made for it) when the block ends without one."""
+    res = reserve(path)
+    try:
         yield res
     finally:
-        if res is None or not res.committed:
-            for tmp in made:
-                tmp.unlink(missing_ok=True)
-            _remove_if_empty(created)
+        res.discard()
 
 
 def json_bytes(data: Mapping[str, Any], generator: str) -> bytes:

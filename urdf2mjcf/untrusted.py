@@ -15,9 +15,11 @@ them from this table).
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import re
 import stat
+import unicodedata
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -61,14 +63,9 @@ def env_number(name: str, raw: str, *, low: float, high: float) -> float:
     """An environment variable's value as a finite number in [low, high]; an InputError
     naming the variable otherwise (the error contract: one line, exit 2)."""
     try:
-        value = float(raw)
-    except ValueError:
-        raise InputError(f"'{excerpt(raw)}' is not a number", file=f"${name}") from None
-    if not math.isfinite(value) or not low <= value <= high:
-        raise InputError(
-            f"'{excerpt(raw)}' is not a number from {low:g} to {high:g}", file=f"${name}"
-        )
-    return value
+        return read_number(raw, low=low, high=high)
+    except BadNumber as exc:
+        raise InputError(str(exc), file=f"${name}") from None
 
 
 def _kind_of(mode: int) -> str:
@@ -219,6 +216,100 @@ def check_yaml_size(node: Any, limit: int = YAML_MAX_NODES) -> None:
 
 # -- numbers -----------------------------------------------------------------------------
 
+NUMBER_TEXT_MAX = 100
+"""Characters of a number written as text (the longest double needs 24): a longer one is
+refused as a bad number, never parsed (``int()`` of 5,000 digits raises, of 100,000
+takes seconds)."""
+
+_DECIMAL = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
+"""A number as text: decimal digits, a point, an exponent. Not ``0x10``, ``1_000``,
+``1:30`` or ``infinity``, which Python's ``float`` or YAML 1.1 would read as numbers."""
+_LEADING_ZERO = re.compile(r"[-+]?0[0-9]")
+_INTEGER = re.compile(r"[-+]?[0-9]+")
+
+
+class BadNumber(ValueError):
+    """Why a value is not a number we use; its text is the one-line error's message."""
+
+
+def shown(value: Any, limit: int = 40) -> str:
+    """``value`` as an error line quotes it: short, one line, printable (an integer too
+    long for ``str`` is described, not converted)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 4000:
+        return f"an integer of {value.bit_length():,} bits"
+    return excerpt(str(value), limit)
+
+
+def parse_number(value: Any) -> float:
+    """``value`` as a finite float: an int or float (not a bool), or text of decimal
+    digits with an optional point and exponent, at most :data:`NUMBER_TEXT_MAX`
+    characters and without a leading zero (``017`` is 15 to YAML 1.1). Else
+    :class:`BadNumber` saying why. The one reader of a number from a file, a command
+    line, the environment or a request."""
+    if isinstance(value, bool):
+        raise BadNumber(f"'{value}' is not a number")
+    if isinstance(value, str):
+        text = value.strip()
+        if len(text) > NUMBER_TEXT_MAX:
+            raise BadNumber(
+                f"'{excerpt(text, 40)}' is not a number ({len(text):,} characters; "
+                f"at most {NUMBER_TEXT_MAX})"
+            )
+        if not _DECIMAL.fullmatch(text):
+            if text.lower().lstrip("+-") in ("inf", "infinity", "nan", ".inf", ".nan"):
+                raise BadNumber(f"'{excerpt(text, 40)}' is not finite")
+            raise BadNumber(f"'{excerpt(text, 40)}' is not a number")
+        if _LEADING_ZERO.match(text) and _INTEGER.fullmatch(text):
+            raise BadNumber(
+                f"'{text}' is not a number: a leading zero is octal in YAML 1.1; "
+                "write it without"
+            )
+        x = float(text)
+    elif isinstance(value, numbers.Real):  # int, float, numpy's
+        try:
+            x = float(value)
+        except OverflowError:  # an integer of 400 digits
+            raise BadNumber(f"'{shown(value)}' is out of range") from None
+    else:
+        raise BadNumber(f"'{shown(value)}' is not a number")
+    if not math.isfinite(x):
+        raise BadNumber(f"'{shown(value)}' is not finite")
+    return x
+
+
+def range_text(low: float, high: float, low_open: bool = False) -> str:
+    """``[low, high]`` in words, as every out-of-range error says it."""
+    return f"{'above' if low_open else 'from'} {low:g} to {high:g}"
+
+
+def read_number(
+    value: Any, *, low: float = -math.inf, high: float = math.inf, low_open: bool = False
+) -> float:
+    """``value`` as a finite float in [low, high] (``(low, high]`` with ``low_open``);
+    else :class:`BadNumber` (see :func:`parse_number`). What a reader that answers a
+    request (the console) calls: its message is the answer's."""
+    x = parse_number(value)
+    too_low = x <= low if low_open else x < low
+    if too_low or x > high:
+        raise BadNumber(f"{x:g} is out of range ({range_text(low, high, low_open)})")
+    return x
+
+
+def read_whole(value: Any, *, low: int, high: int) -> int:
+    """``value`` as an integer in [low, high]: an int (not a bool) or its decimal digits
+    as text (at most :data:`NUMBER_TEXT_MAX`, no leading zero); else :class:`BadNumber`."""
+    n: int | None = None
+    if isinstance(value, int) and not isinstance(value, bool):
+        n = value
+    elif isinstance(value, str):
+        text = value.strip()
+        if len(text) <= NUMBER_TEXT_MAX and _INTEGER.fullmatch(text):
+            if not (_LEADING_ZERO.match(text)):
+                n = int(text)
+    if n is None or not low <= n <= high:
+        raise BadNumber(f"'{shown(value)}' is not a whole number from {low} to {high}")
+    return n
+
 
 def finite(
     value: Any,
@@ -231,34 +322,41 @@ def finite(
 ) -> float:
     """``value`` as a finite float in [low, high] (``(low, high]`` with ``low_open``);
     else ``error(message)`` (default: an InputError naming ``where``)."""
-
-    def fail(message: str) -> ConversionError:
-        return error(message) if error else InputError(message, file=where)
-
-    if isinstance(value, bool):
-        raise fail(f"'{excerpt(str(value))}' is not a number")
     try:
-        x = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise fail(f"'{excerpt(str(value))}' is not a number") from None
-    if not math.isfinite(x):
-        raise fail(f"'{excerpt(str(value))}' is not finite")
-    too_low = x <= low if low_open else x < low
-    if too_low or x > high:
-        lo = "above" if low_open else "from"
-        raise fail(f"{x:g} is out of range ({lo} {low:g} to {high:g})")
-    return x
+        return read_number(value, low=low, high=high, low_open=low_open)
+    except BadNumber as exc:
+        raise (error(str(exc)) if error else InputError(str(exc), file=where)) from None
 
 
 # -- text for terminals and error lines ----------------------------------------------------
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+_HIDDEN = frozenset(("Cc", "Cf", "Cs", "Zl", "Zp"))
+"""Unicode categories never printed as they are: controls, format characters (the
+bidirectional overrides U+202A..U+202E and isolates U+2066..U+2069, zero-width
+spaces and joiners, U+FEFF), lone surrogates, line and paragraph separators: each can
+make a line read other than it is."""
+
+
+def _escape(ch: str) -> str:
+    n = ord(ch)
+    return f"\\x{n:02x}" if n < 0x100 else f"\\u{n:04x}" if n < 0x10000 else f"\\U{n:08x}"
 
 
 def printable(text: str) -> str:
-    """``text`` with control characters (ANSI escapes, carriage returns, bells) shown as
-    ``\\xNN`` escapes: nothing read from a file may drive the user's terminal."""
-    return _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", str(text))
+    """``text`` with control and format characters (ANSI escapes, carriage returns,
+    bells, right-to-left overrides, zero-width spaces) shown as ``\\xNN``, ``\\uNNNN``
+    escapes: nothing read from a file may drive the user's terminal or reorder a line.
+    Tabs and newlines stay."""
+    text = str(text)
+    if text.isascii():
+        return _CONTROL.sub(lambda m: _escape(m.group()), text)
+    return "".join(
+        _escape(ch)
+        if ch not in "\t\n" and unicodedata.category(ch) in _HIDDEN
+        else ch
+        for ch in text
+    )
 
 
 def excerpt(text: str, limit: int = 80) -> str:

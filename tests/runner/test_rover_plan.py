@@ -147,7 +147,7 @@ BAD = [
         "out of range (from -1000 to 1000)",
     ),
     (_plan("  - {kind: straight, distance: 1, speed: 0}\n"), "tasks[0].speed", "out of range"),
-    (_plan("  - {kind: straight, distance: .nan}\n"), "tasks[0].distance", "is not a number"),
+    (_plan("  - {kind: straight, distance: .nan}\n"), "tasks[0].distance", "is not finite"),
     (_plan("  - {kind: hold, duration: 1000}\n"), "tasks[0].duration", "out of range"),
     (_plan("  - {kind: hold}\narm: {kind: arm_wave, joint: -1}\n"), "arm.joint", "whole number"),
     (_plan("  - {kind: hold}\narm: {kind: hold}\n"), "arm.kind", "is a drive task"),

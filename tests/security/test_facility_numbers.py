@@ -317,7 +317,7 @@ DEMO = ROOT / "recipes" / "demo" / "imetro.yaml"
     "pattern, replacement, needles",
     [
         (r"^final_wait: 1.5$", "final_wait: 1.0e+9", ("final_wait", "out of range")),
-        (r"^final_wait: 1.5$", "final_wait: .nan", ("final_wait", "not a number")),
+        (r"^final_wait: 1.5$", "final_wait: .nan", ("final_wait", "not finite")),
         (r"step_time: 1.2 ", "step_time: 1.0e+300 ", ("step_time", "out of range")),
         (r"steps: 8$", "steps: 1000000000", ("open_lid'.steps", "whole number")),
         (r"perception: \{size: \[480, 640\]\}", "perception: {size: [480, 1.0e+9]}", ("size[1]",)),

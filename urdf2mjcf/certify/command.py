@@ -28,18 +28,27 @@ TOLERANCE = KeyedFloat(FiniteFloat(0.0, 1e6), "NAME")
 
 
 def load_name_map(path: Path) -> NameMap:
-    """A YAML file ``{links: {LINK: BODY}, joints: {JOINT: MJCF_JOINT}}`` (both optional)."""
+    """A YAML file ``{links: {LINK: BODY}, joints: {JOINT: MJCF_JOINT}}`` (both optional),
+    read by our one YAML reader (:func:`urdf2mjcf.schema.parse`: no alias bomb, no key
+    given twice, no YAML 1.1 guess)."""
     import yaml
 
-    from ..untrusted import check_yaml_size, read_file
+    from ..schema import parse
+    from ..untrusted import excerpt, read_file
 
     raw = read_file(path, "yaml", element="--name-map", what="name map")
     try:
-        data = yaml.safe_load(raw.decode("utf-8"))
-        check_yaml_size(data)
-    except (yaml.YAMLError, UnicodeDecodeError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"not a YAML name map: {first}", file=path, element="--name-map") from None
+        data, _ = parse(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        message = "not a YAML name map: not UTF-8 text"
+        raise InputError(message, file=path, element="--name-map") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or (str(exc).strip().splitlines() or ["?"])[0]
+        raise InputError(
+            f"not a YAML name map: {excerpt(problem, 120)}{where}", file=path, element="--name-map"
+        ) from None
     data = {} if data is None else data
     if not isinstance(data, dict) or set(data) - {"links", "joints"}:
         raise InputError(

@@ -26,6 +26,28 @@ from .reference import urdfdom_error, urdfdom_quiet
 log = logging.getLogger(__name__)
 
 _TINY = 1e-12
+DEPTH_MAX = 2_000
+"""Links deep a description's tree may be for pinocchio to read it: urdfdom walks the
+tree recursively in C++ and overflows the stack (a crash, not an error) somewhere
+between 3,000 and 4,000 links deep; a deeper tree's dynamics are not compared."""
+
+
+def tree_depth(joints: Any) -> int:
+    """How many links deep the tree of ``joints`` (each with ``parent`` and ``child``
+    link names) is, counted without recursion."""
+    parent = {j.child: j.parent for j in joints}
+    depth: dict[str, int] = {}
+    for link in parent:
+        path = []
+        while link in parent and link not in depth:
+            path.append(link)
+            link = parent[link]
+            if len(path) > len(parent):  # a cycle: the parse refuses it first
+                return len(parent) + 1
+        base = depth.get(link, 0)
+        for k, name in enumerate(reversed(path), 1):
+            depth[name] = base + k
+    return 1 + max(depth.values(), default=0)
 
 
 def available() -> bool:
@@ -114,6 +136,10 @@ def dynamics_section(
         for link in mt.ref.urdf.robot.links
         if link.name not in patch and link.inertial is not None and not link.inertial.mass
     )
+    depth = tree_depth(mt.ref.urdf.robot.joints)
+    if depth > DEPTH_MAX:
+        why = f"the description is {depth} links deep; pinocchio reads at most {DEPTH_MAX}"
+        return {"computed": False, "why": why}, []
     xml = patched_xml(mt.ref.document.xml, patch, drop)
     with urdfdom_quiet() as printed:  # urdfdom prints from C++: held back
         try:

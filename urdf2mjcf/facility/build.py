@@ -197,7 +197,7 @@ def build_facility(
     present = [n for n in table if n in moved]
     attached = [n for n in present if table[n].attach is not None]
     # Passes on the scene in memory: what is written is what validation stepped.
-    folding = fold.Fold() if fold_fixtures else None
+    folding = fold.Fold(recipe.path) if fold_fixtures else None
     tagging = fiducials.Tags(
         [
             (n, table[n].prefix, tag)

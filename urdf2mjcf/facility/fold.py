@@ -25,10 +25,12 @@ sensor (a touch sensor sums the contacts of its site's body), and never across a
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..errors import ValidationError
 from ..fmt import fmt_vec
 from ..mjmodel import compile_home
 from ..passes.emit import EmitResult
@@ -136,11 +138,20 @@ class Fold:
     compiles a copy to learn the bodies, welds and contact classes, and returns the
     folded document; what it did is left in :attr:`folded`."""
 
-    def __init__(self) -> None:
+    def __init__(self, recipe: Path | None = None) -> None:
         self.folded = Folded()
+        self.recipe = recipe
+        """Named by the error when MuJoCo rejects the model (a --set path to a file that
+        is no height field, say)."""
 
     def __call__(self, result: EmitResult) -> EmitResult:
-        m, _ = compile_home(result.root, result.files)
+        try:
+            m, _ = compile_home(result.root, result.files)
+        except ValueError as exc:  # MuJoCo's: bad input, not a bug of ours
+            message = " ".join(str(exc).split())
+            raise ValidationError(
+                f"MuJoCo rejected the built facility: {message}", file=self.recipe
+            ) from None
         root = result.edit()
         self.folded = fold_fixtures(root, m)
         if not (self.folded.moved or self.folded.merged):

@@ -51,7 +51,8 @@ from typing import Any
 import yaml
 
 from ..ir import COLLISION_SHAPES
-from ..schema import Source, load
+from ..schema import Refused, Source, load
+from ..schema import parse as parse_yaml
 from ..untrusted import excerpt, is_folder_name
 from .fiducials import Fiducial, check_unique, parse_fiducials
 from .noise import parse_noise
@@ -255,25 +256,30 @@ SET_VALUE_MAX = 4096
 """Characters of one ``--set`` value: a flag, a number, a short list or a path."""
 
 
-def _parse_scalar(text: str) -> Any:
-    """A --set value as YAML would read it (true, 0.5, [1, 2], text); no anchors or
-    aliases (a value on a command line needs none, and an alias bomb would expand)."""
+def _parse_scalar(text: str, src: Source, where: str) -> Any:
+    """A --set value as our YAML reader reads a file's (true, 0.5, [1, 2], text); no
+    anchors or aliases (a value on a command line needs none, and an alias bomb would
+    expand). Text that is not YAML is text; a key given twice, or a value YAML 1.1 and
+    1.2 read differently (``yes``, ``1:30``, ``0x10``), is an error, as in a file."""
     if len(text) > SET_VALUE_MAX or "&" in text or "*" in text:
         return text  # read as text, which every numeric field then refuses
     try:
-        return yaml.safe_load(text)
+        return parse_yaml(text)[0]
+    except Refused as exc:
+        problem = excerpt(exc.problem or "", 120)
+        raise src.fail(where, f"'{excerpt(text, 60)}': {problem}") from None
     except yaml.YAMLError:
         return text
 
 
-def _set_flag(flags: Any, name: str, text: str, src: Source, where: str) -> None:
+def _set_flag(flags: Any, name: str, value: Any, src: Source, where: str) -> None:
     """A --set of a flag: one the recipe declares, a boolean flag only true or false."""
     known = flags if isinstance(flags, Mapping) else {}
     if name not in known:
         valid = _names(known) or "none (the recipe has no flags)"
-        raise src.fail(where, f"unknown flag '{name}'; the recipe's flags: {valid}")
-    if isinstance(known[name], bool) and not isinstance(_parse_scalar(text), bool):
-        raise src.fail(where, f"'{text}' is not true or false")
+        raise src.fail(where, f"unknown flag '{excerpt(name, 60)}'; the recipe's flags: {valid}")
+    if isinstance(known[name], bool) and not isinstance(value, bool):
+        raise src.fail(where, f"'{excerpt(str(value), 60)}' is not true or false")
 
 
 def apply_sets(data: dict, sets: Mapping[str, str], src: Source) -> dict:
@@ -282,7 +288,7 @@ def apply_sets(data: dict, sets: Mapping[str, str], src: Source) -> dict:
     data = copy.deepcopy(data)
     for key, text in sets.items():
         where = f"--set {key}"
-        value = _parse_scalar(text)
+        value = _parse_scalar(text, src, where)
         parts = key.split(".")
         if len(parts) == 1 and (key not in TOP_KEYS or key in (data.get("flags") or {})):
             parts = ["flags", key]
@@ -294,7 +300,7 @@ def apply_sets(data: dict, sets: Mapping[str, str], src: Source) -> dict:
         if parts[0] == "flags":
             if len(parts) != 2:
                 raise src.fail(where, "a flag is one name (--set NAME=VALUE)")
-            _set_flag(data.get("flags"), parts[1], text, src, where)
+            _set_flag(data.get("flags"), parts[1], value, src, where)
         target = data
         for part in parts[:-1]:
             target = target.setdefault(part, {})

@@ -18,6 +18,7 @@ from typing import Any
 from ..errors import InputError
 from ..limits import ANGLE_MAX, LENGTH_MAX, SEED_MAX, TIMESTEP_RANGE  # noqa: F401
 from ..schema import Source
+from ..untrusted import BadNumber, read_number, shown
 
 JITTER_POSITION_MAX = 10.0
 """m: largest +- position range of a component's jitter."""
@@ -59,10 +60,6 @@ def fail(path: Path | Source | None, key: str, message: str) -> InputError:
     return InputError(message, file=path or "recipe", element=key)
 
 
-def _range_text(low: float, high: float, low_open: bool) -> str:
-    return f"{'above' if low_open else 'from'} {low:g} to {high:g}"
-
-
 def number(
     value: Any,
     path: Path | Source | None,
@@ -73,28 +70,18 @@ def number(
     low_open: bool = False,
 ) -> float:
     """A finite float in [low, high] (``(low, high]`` with ``low_open``), or an
-    InputError naming the file and the key."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise fail(path, key, f"'{_short(value)}' is not a number")
+    InputError naming the file and the key (:func:`urdf2mjcf.untrusted.read_number`:
+    text only in decimal, at most ``NUMBER_TEXT_MAX`` characters)."""
+    if not isinstance(value, (int, float, str)):
+        raise fail(path, key, f"'{shown(value)}' is not a number")
     try:
-        x = float(value)
-    except (ValueError, OverflowError):
-        raise fail(path, key, f"'{_short(value)}' is not a number") from None
-    if not math.isfinite(x):
-        raise fail(path, key, f"'{_short(value)}' is not finite")
-    if (x <= low if low_open else x < low) or x > high:
-        raise fail(path, key, f"{x:g} is out of range ({_range_text(low, high, low_open)})")
-    return x
+        return read_number(value, low=low, high=high, low_open=low_open)
+    except BadNumber as exc:
+        raise fail(path, key, str(exc)) from None
 
 
 def whole(value: Any, path: Path | Source | None, key: str, *, low: int, high: int) -> int:
-    """An integer (not a bool, not a float) in [low, high], or an InputError."""
+    """An integer (not a bool, not a float, not text) in [low, high], or an InputError."""
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise fail(path, key, f"'{_short(value)}' is not a whole number from {low} to {high}")
+        raise fail(path, key, f"'{shown(value)}' is not a whole number from {low} to {high}")
     return value
-
-
-def _short(value: Any) -> str:
-    from ..untrusted import excerpt
-
-    return excerpt(str(value), 40)

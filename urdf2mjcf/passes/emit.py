@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import functools
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TypeVar
@@ -172,21 +173,28 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
 
     if robot.root is None:
         return world
-    # Children before parents (reverse pre-order) without recursion, so a chain of any
-    # depth works; each child is complete, its own fixed children fused, when it is
-    # attached or fused, as a depth-first walk would do it.
-    order = robot.topological_links()
+    # Without recursion, so a chain of any depth works, and in time linear in the links:
+    # each fused link's geoms, sites and cameras are moved once, by the transform from its
+    # frame to the body it ends up in (composed parents first), not once per level. The
+    # bodies come out as a depth-first walk fusing children into parents makes them:
+    # inertials combined children first, items in pre-order, children in document order.
+    order = robot.topological_links()  # pre-order, siblings in document order
     bodies = {link: make(link) for link in order}
-    for link in reversed(order):
-        body = bodies[link]
+    parent: dict[str, str] = {}
+    fused: set[str] = set()
+    for link in order:
         for joint in robot.child_joints.get(link, ()):
             child = bodies[joint.child]
             child.pos, child.quat = vec3(joint.origin.xyz), pose_quat(joint.origin)
             child.joint = joint if joint.type != "fixed" else None
+            parent[joint.child] = link
             if cfg.fuse_fixed and joint.type == "fixed" and joint.child not in keep:
-                _fuse(body, child)
-            else:
-                body.children.append(child)
+                fused.add(joint.child)
+    if fused:
+        _fuse_all(order, bodies, parent, fused, robot.child_joints)
+    else:
+        for link in order[1:]:
+            bodies[parent[link]].children.append(bodies[link])
     root = bodies[robot.root]
     if robot.root == WORLD:
         world.geoms, world.children = root.geoms, root.children
@@ -196,20 +204,71 @@ def _build_tree(model: Model, cfg: EmitConfig) -> _Body:
     return world
 
 
-def _fuse(parent: _Body, child: _Body) -> None:
-    t = transform(child.pos, child.quat)
-    parent.geoms += [_moved(g, t) for g in child.geoms]
-    parent.inertial = _combine(parent.inertial, child.inertial, t)
-    if not any(site.name == child.name for site in child.sites):
-        parent.sites.append(Site(child.name, parent.name, child.pos, child.quat))
-    parent.sites += [_moved(site, t) for site in child.sites]
-    parent.cameras += [_moved(camera, t) for camera in child.cameras]
-    parent.gravcomp = parent.gravcomp or child.gravcomp
-    for grandchild in child.children:
-        grandchild.pos, grandchild.quat = split_transform(
-            t @ transform(grandchild.pos, grandchild.quat)
+def _fuse_all(
+    order: tuple[str, ...],
+    bodies: dict[str, _Body],
+    parent: dict[str, str],
+    fused: set[str],
+    child_joints: Mapping[str, Sequence[Joint]],
+) -> None:
+    """Fuse every link of ``fused`` into its parent's body (``order``: pre-order)."""
+    owner: dict[str, str] = {}
+    to_owner: dict[str, np.ndarray] = {}  # a fused link's frame -> its owner body's frame
+    for link in order:
+        if link not in fused:
+            owner[link] = link
+            continue
+        up, body = parent[link], bodies[link]
+        owner[link] = owner[up]
+        t = transform(body.pos, body.quat)
+        to_owner[link] = t if up not in fused else to_owner[up] @ t
+    for link in reversed(order):  # children first, as a depth-first fuse combines them
+        body = bodies[link]
+        for joint in child_joints.get(link, ()):
+            if joint.child in fused:
+                child = bodies[joint.child]
+                t = transform(child.pos, child.quat)
+                body.inertial = _combine(body.inertial, child.inertial, t)
+                body.gravcomp = body.gravcomp or child.gravcomp
+    # a fused link leaves a site of its name unless one in its fused subtree has it
+    holders: dict[str, list[str]] = {}
+    for link in order:
+        for site in bodies[link].sites:
+            holders.setdefault(site.name, []).append(link)
+    span = _spans(order, parent)
+    for link in order[1:]:
+        body, up = bodies[link], parent[link]
+        home = bodies[owner[up]]  # the body it joins (a moving link is its own owner)
+        if link not in fused:
+            if up in fused:  # a moving child of a fused link: placed in the owner's frame
+                body.pos, body.quat = split_transform(
+                    to_owner[up] @ transform(body.pos, body.quat)
+                )
+            home.children.append(body)
+            continue
+        t = to_owner[link]
+        first, last = span[link]
+        named = any(
+            owner[k] == owner[link] and first <= span[k][0] < last
+            for k in holders.get(link, ())
         )
-        parent.children.append(grandchild)
+        if not named:
+            pos, quat = (body.pos, body.quat) if up not in fused else split_transform(t)
+            home.sites.append(Site(link, up, pos, quat))
+        home.geoms += [_moved(g, t) for g in body.geoms]
+        home.sites += [_moved(site, t) for site in body.sites]
+        home.cameras += [_moved(camera, t) for camera in body.cameras]
+
+
+def _spans(order: tuple[str, ...], parent: dict[str, str]) -> dict[str, tuple[int, int]]:
+    """Each link's subtree as a range of pre-order positions: ``k`` is in ``link``'s
+    subtree when ``span[link][0] <= span[k][0] < span[link][1]``."""
+    index = {link: i for i, link in enumerate(order)}
+    end = {link: i + 1 for i, link in enumerate(order)}
+    for link in reversed(order[1:]):
+        up = parent[link]
+        end[up] = max(end[up], end[link])
+    return {link: (index[link], end[link]) for link in order}
 
 
 # -- XML ---------------------------------------------------------------------

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from lxml import etree
 
+from ..errors import ValidationError
 from ..fmt import mjcf_bytes, set_attrs
 from ..mjmodel import HomeCompiles, compile_home
 from .emit import EmitResult
@@ -136,6 +137,10 @@ def run(
     result: EmitResult, robot_file: str, model_name: str, compiles: HomeCompiles | None = None
 ) -> etree._Element:
     """The scene document around the robot document ``result`` (written as ``robot_file``)."""
-    lowest = lowest_point(result, compiles)
+    try:
+        lowest = lowest_point(result, compiles)
+    except ValueError as exc:  # MuJoCo's (a model too large to allocate): bad input
+        message = " ".join(str(exc).split())
+        raise ValidationError(f"MuJoCo rejected the model: {message}", file=robot_file) from None
     floor_z = min(0.0, lowest) if lowest is not None else 0.0
     return scene_root(robot_file, model_name, floor_z)

@@ -10,15 +10,15 @@ approximation p +- z sqrt(p(1-p)/n) collapses to a zero-width interval at 20/20.
 from __future__ import annotations
 
 import json
-import os
 import re
 import statistics
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from ..errors import OutputError
+from ..output import Reserved, check_output_file, read_own, reserve
+from ..untrusted import limit_bytes
 
 SUCCESS_CHECK = "success check"
 """The demo's final check, after every step passed (``DemoResult.failed_step``)."""
@@ -184,25 +184,20 @@ def check_plot(plot: Path, report: Path, overwrite: bool, generator: str) -> Non
     The plot is ours when the report beside it is ours and names it as its ``"plot"``."""
     if plot.is_dir():
         raise OutputError("is a folder; the plot of the report goes there", file=plot)
-    if not plot.exists() or overwrite:
-        return
-    try:
-        data = json.loads(report.read_text())
-    except (OSError, UnicodeDecodeError, ValueError):
-        data = None
-    if not (
-        isinstance(data, dict)
-        and data.get("generator") == generator
-        and data.get("plot") == plot.name
-    ):
-        raise OutputError(
-            f"already exists and is not the plot of an earlier {generator} report; "
-            "pass --overwrite to replace it",
-            file=plot,
+
+    def ours(_: BinaryIO) -> bool:
+        data = read_own(report, lambda f: json.loads(f.read(limit_bytes("report") + 1)))
+        return (
+            isinstance(data, dict)
+            and data.get("generator") == generator
+            and data.get("plot") == plot.name
         )
 
+    not_ours = f"is not the plot of an earlier {generator} report"
+    check_output_file(plot, overwrite, ours, not_ours)
 
-def plot_outcomes(agg: dict[str, Any], path: Path) -> None:
+
+def plot_outcomes(agg: dict[str, Any], path: Path | Reserved) -> None:
     """A PNG of the outcomes per step (passed, failed, not reached), written atomically."""
     import matplotlib
 
@@ -235,13 +230,14 @@ def plot_outcomes(agg: dict[str, Any], path: Path) -> None:
         tick.set_horizontalalignment("right")
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")  # off the bars
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", suffix=".png", dir=path.parent)
-    os.close(fd)
+    # the reserved file of the caller (who renames it), or our own: named with our process
+    # id, so that one a kill -9 leaves is removed by the next run (output.clean_stale)
+    slot = path if isinstance(path, Reserved) else reserve(Path(path))
     try:
-        fig.savefig(tmp, format="png", metadata={"Software": None})  # no version: byte-stable
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        fig.savefig(slot.tmp, format="png", metadata={"Software": None})  # byte-stable
+        if slot is not path:
+            slot.commit()
     finally:
+        if slot is not path:
+            slot.discard()
         plt.close(fig)

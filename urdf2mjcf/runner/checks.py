@@ -16,7 +16,8 @@ from typing import Any
 from ..errors import FacilityError
 from ..limits import ANGLE_MAX, LENGTH_MAX
 from ..schema import Source
-from ..untrusted import excerpt
+from ..untrusted import BadNumber, excerpt, read_number
+from ..untrusted import shown as quoted
 
 Check = Callable[[Any, str, "Waypoints"], None]
 
@@ -58,19 +59,14 @@ def _number(
     high: float = math.inf,
     low_open: bool = False,
 ) -> float:
-    """A finite float in [low, high] (``(low, high]`` with ``low_open``)."""
-    x = math.nan
-    if not isinstance(value, bool) and isinstance(value, (int, float)):
-        try:
-            x = float(value)
-        except OverflowError:  # an integer of 400 digits
-            pass
-    if not math.isfinite(x):
-        raise w.fail(where, f"'{excerpt(str(value), 40)}' is not a number")
-    if (x <= low if low_open else x < low) or x > high:
-        lo = "above" if low_open else "from"
-        raise w.fail(where, f"{x:g} is out of range ({lo} {low:g} to {high:g})")
-    return x
+    """A finite float in [low, high] (``(low, high]`` with ``low_open``): a YAML number,
+    not text (:func:`urdf2mjcf.untrusted.read_number`)."""
+    if isinstance(value, str):  # "0.5" in quotes, or a number too long to be one
+        raise w.fail(where, f"'{quoted(value)}' is not a number")
+    try:
+        return read_number(value, low=low, high=high, low_open=low_open)
+    except BadNumber as exc:
+        raise w.fail(where, str(exc)) from None
 
 
 def ranged(low: float, high: float, low_open: bool = False) -> Check:
@@ -105,12 +101,12 @@ def count(high: int, low: int = 0) -> Check:
 
 def flag(value: Any, where: str, w: Waypoints) -> None:
     if not isinstance(value, bool):
-        raise w.fail(where, f"'{value}' is not true or false")
+        raise w.fail(where, f"'{quoted(value)}' is not true or false")
 
 
 def name(value: Any, where: str, w: Waypoints) -> None:
     if not isinstance(value, str) or not value:
-        raise w.fail(where, f"'{value}' is not a name")
+        raise w.fail(where, f"'{quoted(value)}' is not a name")
 
 
 def numbers(

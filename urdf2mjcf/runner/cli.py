@@ -27,6 +27,7 @@ from .live_options import check_allow_origin, live_options
 from .trial_options import trial_options
 
 if TYPE_CHECKING:
+    from ..output import Reserved
     from .load import Facility
 
 
@@ -234,7 +235,7 @@ def facility_demo_command(
                     spec,
                     staged,
                     record,
-                    record_to.tmp if record_to else None,
+                    record_to,
                     pace if view else None,
                     _Live(foxglove, pace, foxglove_wait, allow_origins)
                     if foxglove is not None
@@ -242,7 +243,7 @@ def facility_demo_command(
                     allow_origins,
                 )
             if report and plot_to is not None:
-                plot_outcomes(result["aggregate"], plot_to.tmp)
+                plot_outcomes(result["aggregate"], plot_to)
                 result = {**result, "plot": plot_path(report).name}
             if report_to is not None:
                 report_to.write(out.json_bytes(result, GENERATOR))
@@ -349,16 +350,16 @@ def _once(
     spec: dict,
     frames: Path | None,
     record: Path | None = None,
-    record_to: Path | None = None,
+    record_to: Reserved | None = None,
     pace: float | None = None,
     stream: _Live | None = None,
     origins: tuple[str, ...] = (),
 ) -> tuple[dict, bool]:
     """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
-    reserved temporary file) when given; with ``pace``, the run is shown live at that
-    pace (the view only reads the state; ``origins``: those its viewer answers besides
-    its own page); with ``stream``, the recording's messages are served to Foxglove
-    while it runs."""
+    reserved file, renamed by the caller) when given; with ``pace``, the run is shown live
+    at that pace (the view only reads the state; ``origins``: those its viewer answers
+    besides its own page); with ``stream``, the recording's messages are served to
+    Foxglove while it runs."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)

@@ -34,9 +34,7 @@ The writer libraries are the optional extra ``ros`` (``mcap``,
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +44,7 @@ import mujoco
 import numpy as np
 
 from ..errors import OutputError
+from ..output import Reserved, check_output_file, read_own, reserve
 from .camera import CameraModel
 from .load import Facility, LoadError, lookup
 
@@ -271,25 +270,27 @@ def check_recording(path: Path, overwrite: bool, generator: str) -> None:
         raise OutputError(f"a recording must end in {SUFFIX}", file=path, element="--record")
     if path.is_dir():
         raise OutputError("is a folder; give the .mcap file to write", file=path)
-    if path.exists() and not overwrite and recorded_by(path) != generator:
-        raise OutputError(
-            f"already exists and is not a recording of {generator}; pass --overwrite to replace it",
-            file=path,
-        )
+    check_output_file(
+        path,
+        overwrite,
+        lambda f: _generator_of(f) == generator,
+        f"is not a recording of {generator}",
+    )
+
+
+def _generator_of(f: BinaryIO) -> str | None:
+    from mcap.reader import make_reader
+
+    for meta in make_reader(f).iter_metadata():
+        if meta.name == METADATA:
+            return meta.metadata.get("generator")
+    return None
 
 
 def recorded_by(path: Path) -> str | None:
-    """The ``generator`` in our metadata record of an MCAP file; None for any other file."""
-    from mcap.reader import make_reader
-
-    try:
-        with path.open("rb") as f:
-            for meta in make_reader(f).iter_metadata():
-                if meta.name == METADATA:
-                    return meta.metadata.get("generator")
-    except Exception:  # not MCAP, truncated, unreadable: not ours either way
-        return None
-    return None
+    """The ``generator`` in our metadata record of an MCAP file; None for any other file
+    (never opened unless it is a regular file: :func:`urdf2mjcf.output.read_own`)."""
+    return read_own(path, _generator_of)
 
 
 # -- the recorder ----------------------------------------------------------------------------
@@ -386,7 +387,7 @@ class Recorder:
         m: mujoco.MjModel,
         d: mujoco.MjData,
         sources: Sources,
-        path: str | Path | None,
+        path: str | Path | Reserved | None,
         *,
         rates: Rates | None = None,
         generator: str = "urdf2mjcf",
@@ -408,25 +409,27 @@ class Recorder:
         self._closed = False
         self._file: BinaryIO | None = None
         self._writer: Any = None
-        self.path = None if path is None else Path(path)
+        self._slot: Reserved | None = None
+        self._own_slot = not isinstance(path, Reserved)  # else the caller commits it
+        given = path.path if isinstance(path, Reserved) else path
+        self.path = None if given is None else Path(given)
         if path is not None:
-            self._open(Path(path), generator, metadata)
+            self._open(path, generator, metadata)
         self._jobs = self._clocks()
         self._joint_names = [self.m.joint(j).name for j in sources.joints]
 
-    def _open(self, path: Path, generator: str, metadata: Mapping[str, str] | None) -> None:
+    def _open(
+        self, path: str | Path | Reserved, generator: str, metadata: Mapping[str, str] | None
+    ) -> None:
         module = _writer_module()
         if module is None:
             raise OutputError(
-                f"recording needs the MCAP libraries: {INSTALL}", file=path, element="--record"
+                f"recording needs the MCAP libraries: {INSTALL}", file=self.path, element="--record"
             )
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
-        self._tmp = Path(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # a file as any other the user writes, not mkstemp's 0600
-        self._file = os.fdopen(fd, "wb")
+        # a temporary file named with our process id: one a kill -9 leaves is removed by the
+        # next run writing beside it (output.clean_stale), never left for good
+        self._slot = path if isinstance(path, Reserved) else reserve(Path(path))
+        self._file = open(self._slot.tmp, "wb")  # noqa: SIM115 (closed by close or abort)
         self._writer = module.Writer(self._file)
         self._writer.add_metadata(METADATA, {"generator": generator, **(metadata or {})})
         self._schemas = {
@@ -652,20 +655,23 @@ class Recorder:
         self._cams.clear()
 
     def close(self) -> None:
-        """Finish the file and move it to ``path``."""
+        """Finish the file and move it to ``path`` (given a reserved file: finish it; its
+        owner renames it)."""
         if self._closed:
             return
         self._closed = True
         self._release()
-        if self._file is None or self.path is None:
+        if self._file is None or self._slot is None:
             return
         try:
             self._writer.finish()
             self._file.close()
-            os.replace(self._tmp, self.path)
+            if self._own_slot:
+                self._slot.commit()
         except BaseException:
             self._file.close()
-            self._tmp.unlink(missing_ok=True)
+            if self._own_slot:
+                self._slot.discard()
             raise
 
     def abort(self) -> None:
@@ -674,10 +680,11 @@ class Recorder:
             return
         self._closed = True
         self._release()
-        if self._file is None:
+        if self._file is None or self._slot is None:
             return
         self._file.close()
-        self._tmp.unlink(missing_ok=True)
+        if self._own_slot:
+            self._slot.discard()
 
     def __enter__(self) -> Recorder:
         return self

@@ -294,7 +294,7 @@ def _drive(
             from ..record import Recorder, rover_sources
 
             sources = rover_sources(sim.m, sim.manifest, sim.rovers)
-            to = record_to.tmp if record is not None else None
+            to = record_to if record is not None else None
             recorder = Recorder(
                 sim.m,
                 sim.d,

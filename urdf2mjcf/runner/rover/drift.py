@@ -9,11 +9,12 @@ import os
 import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from ...errors import OutputError
+from ...output import check_output_file, read_own
 from .odometry import true_pose, wrap_angle
 from .roles import Rover
 from .state import SimState
@@ -142,30 +143,28 @@ class PathLog:
             self.sample()
 
 
+def _software(f: BinaryIO) -> str | None:
+    if f.read(8) != _PNG:
+        return None
+    for _ in range(64):  # a few header chunks; never the whole file
+        head = f.read(8)
+        if len(head) < 8:
+            return None
+        size, kind = struct.unpack(">I4s", head)
+        if kind == b"IDAT" or size > 65536:
+            return None
+        body = f.read(size + 4)[:size]
+        if kind == b"tEXt" and b"\0" in body:
+            key, _, value = body.partition(b"\0")
+            if key == b"Software":
+                return value.decode("latin-1")
+    return None
+
+
 def plotted_by(path: Path) -> str | None:
     """The ``Software`` text of a PNG file before its image data; None for anything
-    else (a symlink, not a PNG, unreadable)."""
-    if path.is_symlink():
-        return None
-    try:
-        with path.open("rb") as f:
-            if f.read(8) != _PNG:
-                return None
-            for _ in range(64):  # a few header chunks; never the whole file
-                head = f.read(8)
-                if len(head) < 8:
-                    return None
-                size, kind = struct.unpack(">I4s", head)
-                if kind == b"IDAT" or size > 65536:
-                    return None
-                body = f.read(size + 4)[:size]
-                if kind == b"tEXt" and b"\0" in body:
-                    key, _, value = body.partition(b"\0")
-                    if key == b"Software":
-                        return value.decode("latin-1")
-    except OSError:
-        return None
-    return None
+    else (a symlink, a FIFO or a device: never opened; not a PNG, unreadable)."""
+    return read_own(path, _software)
 
 
 def check_plot(plot: Path, overwrite: bool, report: Path | None = None) -> None:
@@ -187,11 +186,8 @@ def check_plot(plot: Path, overwrite: bool, report: Path | None = None) -> None:
             break
     if report is not None and os.path.abspath(report) == os.path.abspath(plot):
         raise OutputError("is the --report file too; give the plot its own", file=plot)
-    if os.path.lexists(plot) and not overwrite and plotted_by(plot) != GENERATOR:
-        raise OutputError(
-            f"already exists and is not a plot of {GENERATOR}; pass --overwrite to replace it",
-            file=plot,
-        )
+    ours = lambda f: _software(f) == GENERATOR  # noqa: E731
+    check_output_file(plot, overwrite, ours, f"is not a plot of {GENERATOR}", "--plot")
 
 
 _COLOURS = ("#1565c0", "#c62828", "#2e7d32", "#6a1b9a", "#ef6c00", "#00838f")
