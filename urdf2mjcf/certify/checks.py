@@ -44,25 +44,15 @@ from __future__ import annotations
 import copy
 import logging
 from concurrent.futures import Future
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..mesh_distance import MeshDistance
+from ..mesh_distance import SEED
+from ..solids import OVERLAP_SAMPLES, Placed, overlap_depth
 from . import stored
-from .collision import (
-    SEED,
-    Primitive,
-    _largest,
-    _sample_triangles,
-    _sample_union,
-    colliding_geoms,
-    geom_links,
-    source_elements,
-    source_shape,
-)
+from .collision import colliding_geoms, geom_links, source_elements, source_shape
 
 if TYPE_CHECKING:
     import mujoco
@@ -86,8 +76,6 @@ the largest; the declared moment about it must be this far off to call the axes
 swapped. (2 flags the misaligned but plausible identified inertias of Panda's
 links 1-3 and hand; 4 still flags talos's rgbd_link, 15x about the wrong axis.)"""
 LIMIT_TOLERANCE = 1e-9
-OVERLAP_SAMPLES = 500
-"""Surface points per link when measuring how deep two source shapes overlap."""
 
 
 def _check(ok: bool, detail: str, **figures: Any) -> dict[str, Any]:
@@ -374,65 +362,8 @@ def _geom_label(m: mujoco.MjModel, g: int) -> str:
     return f"{body} geom #{k}"
 
 
-@dataclass
-class _Placed:
-    """A link's source collision shape placed in the root frame, with what measuring
-    depths into it needs (built once per link: several pairs share a link)."""
-
-    prims: list[Primitive]
-    meshes: list[Any]
-    distances: list[MeshDistance] = field(default_factory=list)
-
-    @classmethod
-    def of(cls, ref: Reference, link: Any, pose: np.ndarray) -> _Placed:
-        src = source_shape(ref, link)
-        meshes = []
-        for mesh in src.meshes:
-            mesh = mesh.copy()
-            mesh.apply_transform(pose)
-            meshes.append(mesh)
-        prims = [Primitive(p.kind, p.size, pose @ p.pose) for p in src.primitives]
-        rng = np.random.default_rng(SEED)
-        return cls(prims, meshes, [MeshDistance(x.triangles, rng) for x in meshes])
-
-    def bounds(self) -> np.ndarray | None:
-        clouds = [p.cloud() for p in self.prims] + [np.asarray(x.vertices) for x in self.meshes]
-        if not clouds:
-            return None
-        pts = np.vstack(clouds)
-        return np.array([pts.min(axis=0), pts.max(axis=0)])
-
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        pts = [_sample_union(self.prims, n, rng)] if self.prims else []
-        pts += [_sample_triangles(np.asarray(x.triangles), n, rng) for x in self.meshes]
-        return np.vstack(pts)
-
-    def depth(self, points: np.ndarray) -> float:
-        """Largest depth of ``points`` inside the shape (0 when none is inside): primitives
-        exactly; meshes by trimesh's ray containment test and the distance to their
-        surface (the largest exactly, as the collision figures' distances)."""
-        depth = 0.0
-        for p in self.prims:
-            depth = max(depth, float(np.max(-p.sdf(points), initial=0.0)))
-        for mesh, dist in zip(self.meshes, self.distances, strict=True):
-            inside = np.asarray(mesh.contains(points), bool)
-            if inside.any():
-                depth = max(depth, _largest([dist], points[inside]))
-        return depth
-
-
-def source_overlap(a: _Placed, b: _Placed, samples: int = OVERLAP_SAMPLES) -> float:
-    """How deep two placed source shapes overlap (m): the deepest of either surface's
-    sampled points inside the other shape. 0 when their bounding boxes are apart."""
-    ba, bb = a.bounds(), b.bounds()
-    if ba is None or bb is None or (ba[0] > bb[1]).any() or (bb[0] > ba[1]).any():
-        return 0.0
-    rng = np.random.default_rng(SEED)
-    return max(b.depth(a.sample(samples, rng)), a.depth(b.sample(samples, rng)))
-
-
 def _overlap_key(ref: Reference, links: tuple[Any, Any], poses: tuple[Any, Any]) -> str | None:
-    """The cache key of :func:`source_overlap` of two links' source shapes at these
+    """The cache key of :func:`~urdf2mjcf.solids.overlap_depth` of two links' source shapes at these
     poses (None when a mesh file cannot be read)."""
     parts = []
     for link, pose in zip(links, poses, strict=True):
@@ -485,9 +416,10 @@ def check_interpenetration(
             else:
                 for name in (l1, l2):
                     if name not in placed:
-                        placed[name] = _Placed.of(ref, links[name], frames[name])
+                        src = source_shape(ref, links[name])
+                        placed[name] = Placed.of(src.primitives, src.meshes, frames[name])
                 try:
-                    src_depth = source_overlap(placed[l1], placed[l2])
+                    src_depth = overlap_depth(placed[l1], placed[l2])
                 except Exception:  # a mesh trimesh cannot test: not compared, said so
                     log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
                 if cache_root and key and src_depth is not None:
