@@ -276,3 +276,42 @@ def test_finger_with_a_part_wound_inside_out_measures_its_true_volume_ratio(
     assert entry["geoms"] == 1
     assert entry["volume_ratio"] == pytest.approx(hull / reference_union, rel=1e-4)
     assert entry["ok"] and section["failures"] == []
+
+
+def test_zero_size_shape_is_the_descriptions_flaw_said_as_such(tmp_path: Path) -> None:
+    """A radius-0 sphere is the description's flaw: the conversion warns naming the
+    description, and the certificate says why the model has no geom for it, as a
+    warning, not the conversion's failure. A zero-size shape beside a real one is left
+    out of that link's figures."""
+    src = tmp_path / "tip.urdf"
+    src.write_text(
+        '<robot name="r">'
+        f'<link name="base"><collision><geometry><box size="0.1 0.1 0.1"/></geometry>'
+        f"</collision>{INERTIAL}</link>"
+        f'<link name="tip"><collision><geometry><sphere radius="0"/></geometry></collision>'
+        f"{INERTIAL}</link>"
+        f'<link name="pad"><collision><geometry><sphere radius="0"/></geometry></collision>'
+        f'<collision><geometry><sphere radius="0.02"/></geometry></collision>{INERTIAL}</link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="tip"/>'
+        '<origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<joint name="k" type="fixed"><parent link="tip"/><child link="pad"/>'
+        '<origin xyz="0 0 0.2"/></joint></robot>'
+    )
+    report = api.convert(src, tmp_path / "robot.xml", scene=False)
+    (warning,) = [n for n in report.warnings if "link 'tip' collision" in n.element]
+    assert str(src) in warning.element and "zero size" in warning.message
+    certificate = report.certificate
+    assert certificate.passed, certificate.failures
+    assert not any("no colliding geom" in f for f in certificate.failures)
+    section = certificate.sections["collision"]
+    tip = section["links"]["tip"]
+    assert tip["ok"] and tip["geoms"] == 0
+    assert tip["zero_size"] == ["sphere of radius 0"]
+    assert "the description's flaw" in tip["reason"]
+    (line,) = section["warnings"]
+    assert line.startswith("collision tip: no colliding geom because the description's")
+    assert "sphere of radius 0" in line and "not the conversion's" in line
+    pad = section["links"]["pad"]  # measured against its real sphere only
+    assert pad["zero_size"] == ["sphere of radius 0"]
+    assert pad["volume_ratio"] == pytest.approx(1.0, abs=1e-9) and pad["ok"]

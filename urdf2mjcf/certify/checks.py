@@ -52,7 +52,7 @@ import numpy as np
 from ..mesh_distance import SEED
 from ..solids import OVERLAP_SAMPLES, Placed, overlap_depth
 from . import stored
-from .collision import colliding_geoms, geom_links, source_elements, source_shape
+from .collision import colliding_geoms, geom_links, source_elements, source_shape, zero_size
 
 if TYPE_CHECKING:
     import mujoco
@@ -345,8 +345,15 @@ def check_collision_matrix(m: mujoco.MjModel, ref: Reference) -> dict[str, Any]:
     if floor:
         detail = f"{len(floor)} of {len(robot)} colliding geoms can touch a default floor"
         return _check(True, detail, **figures)
-    if not any(link.collisions for link in ref.urdf.robot.links):
+    elements = [el for link in ref.urdf.robot.links for el in link.collisions]
+    if not elements:
         detail = "the description has no collision geometry, nor has the model"
+        return _check(True, detail, **figures)
+    if all(zero_size(el.geometry) is not None for el in elements):
+        detail = (
+            "the description's only collision shapes have zero size (its flaw: MuJoCo needs "
+            "size > 0), and the model has none"
+        )
         return _check(True, detail, **figures)
     return _check(False, "no geom can touch a floor of contype=1 conaffinity=1", **figures)
 

@@ -129,6 +129,10 @@ class SourceShape:
     primitives: list[Primitive]
     meshes: list[trimesh.Trimesh]
     problems: list[str]  # what could not be read, one phrase each
+    zero_size: list[str] = field(default_factory=list)
+    """Shapes of zero size (a sphere of radius 0), one phrase each: the description's
+    flaw, left out (they have no surface; the conversion drops them, as MuJoCo needs
+    size > 0)."""
 
     @property
     def empty(self) -> bool:
@@ -157,10 +161,14 @@ def source_shape(ref: Reference, link: Any, kind: str = "collisions") -> SourceS
     prims: list[Primitive] = []
     meshes: list[trimesh.Trimesh] = []
     problems: list[str] = []
+    zero: list[str] = []
     for el in getattr(link, kind):
         pose = np.eye(4) if el.origin is None else np.asarray(el.origin, float)
         g = el.geometry
-        if g.box is not None:
+        flaw = zero_size(g)
+        if flaw is not None:
+            zero.append(flaw)
+        elif g.box is not None:
             prims.append(Primitive("box", np.asarray(g.box.size, float) / 2, pose))
         elif g.sphere is not None:
             prims.append(Primitive("sphere", np.array([g.sphere.radius], float), pose))
@@ -178,7 +186,24 @@ def source_shape(ref: Reference, link: Any, kind: str = "collisions") -> SourceS
                 mesh.apply_transform(np.diag([*scale, 1.0]))
             mesh.apply_transform(pose)
             meshes.append(mesh)
-    return SourceShape(prims, meshes, problems)
+    return SourceShape(prims, meshes, problems, zero)
+
+
+def zero_size(g: Any) -> str | None:
+    """``sphere of radius 0`` for a shape of zero size (yourdfpy's geometry), else None."""
+    if g.box is not None and 0.0 in [float(x) for x in g.box.size]:
+        return f"box of size {' '.join(f'{float(x):g}' for x in g.box.size)}"
+    if g.sphere is not None and float(g.sphere.radius) == 0.0:
+        return "sphere of radius 0"
+    if g.cylinder is not None and 0.0 in (float(g.cylinder.radius), float(g.cylinder.length)):
+        return (
+            f"cylinder of radius {float(g.cylinder.radius):g}, length {float(g.cylinder.length):g}"
+        )
+    if g.mesh is not None and g.mesh.scale is not None:
+        scale = np.broadcast_to(np.asarray(g.mesh.scale, float), 3)
+        if 0.0 in scale:
+            return f"mesh '{g.mesh.filename}' scaled by {' '.join(f'{x:g}' for x in scale)}"
+    return None
 
 
 # -- the model ----------------------------------------------------------------
@@ -506,6 +531,7 @@ def collision_section(
             by_link.setdefault(owner[g], []).append(g)
     links: dict[str, dict[str, Any]] = {}
     failures: list[str] = []
+    warnings: list[str] = []
     for link in ref.urdf.robot.links:
         name = link.name
         mine = by_link.get(name, [])
@@ -529,8 +555,22 @@ def collision_section(
                 _judge(name, entry, hausdorff_mm, hausdorff_rel, volume_ratio, failures)
                 continue
         src = source_shape(ref, link)
+        if src.zero_size:
+            entry["zero_size"] = list(src.zero_size)
         if src.problems:
             entry["reason"] = "source not read: " + "; ".join(src.problems)
+        if src.empty and not mine and src.zero_size:
+            # the description's own flaw: said as a warning, not the conversion's failure
+            what = "; ".join(src.zero_size)
+            entry["reason"] = (
+                f"the description's collision shape has zero size ({what}): the "
+                "description's flaw, which MuJoCo cannot collide (it needs size > 0)"
+            )
+            warnings.append(
+                f"collision {name}: no colliding geom because the description's collision "
+                f"shape has zero size ({what}): the description's flaw, not the conversion's"
+            )
+            continue
         if src.empty and not mine:
             entry.setdefault("reason", "no collision geometry")
             continue
@@ -557,7 +597,7 @@ def collision_section(
         if key is not None and cache_root is not None:
             _store_figures(cache_root, key, figures)
         _judge(name, entry, hausdorff_mm, hausdorff_rel, volume_ratio, failures)
-    return {"links": links, "failures": failures}
+    return {"links": links, "failures": failures, "warnings": warnings}
 
 
 def _judge(
