@@ -18,8 +18,11 @@ the inertia and passive-energy checks: what they flag can be the description's o
     detection reports at home (so neither excluded nor parent-child filtered)
     deeper than ``penetration_m``, each attributed: ``description`` when the
     two links' source shapes overlap by that much too at the same pose (the
-    reference's frames), else ``conversion`` (a hull filling a cavity, a shape
-    moved). Only overlaps the conversion added fail the check; the
+    reference's frames; :func:`~urdf2mjcf.solids.overlap_depth`: the deepest
+    sampled point inside the other, or how far they must move apart along the
+    contact's normal, whichever is larger), else ``conversion`` (a hull filling a
+    cavity, a shape moved). The contacts pass excludes the conversion's by the
+    same measure. Only overlaps the conversion added fail the check; the
     description's own are listed.
 ``home_in_limits``
     The home pose (``d_home``, else the keyframe ``home``, else ``qpos0``)
@@ -50,7 +53,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..mesh_distance import SEED
-from ..solids import OVERLAP_SAMPLES, Placed, overlap_depth
+from ..solids import OVERLAP_SAMPLES, PENETRATION_M, Placed, overlap_depth
 from . import stored
 from .collision import colliding_geoms, geom_links, source_elements, source_shape, zero_size
 
@@ -64,9 +67,6 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 INERTIA_FACTOR = 10.0
-PENETRATION_M = 0.01
-"""Deeper than this at home is flagged: soft contacts settle within millimetres,
-and a hull bridging a joint's clearance reaches a few millimetres on real arms."""
 ENERGY_GROWTH = 0.01
 """Allowed growth over a passive second, as a fraction of mass x gravity x extent."""
 ENERGY_FLOOR_J = 1e-3
@@ -369,17 +369,25 @@ def _geom_label(m: mujoco.MjModel, g: int) -> str:
     return f"{body} geom #{k}"
 
 
-def _overlap_key(ref: Reference, links: tuple[Any, Any], poses: tuple[Any, Any]) -> str | None:
-    """The cache key of :func:`~urdf2mjcf.solids.overlap_depth` of two links' source shapes at these
-    poses (None when a mesh file cannot be read)."""
+def _overlap_key(
+    ref: Reference,
+    links: tuple[Any, Any],
+    poses: tuple[Any, Any],
+    along: tuple[np.ndarray, float],
+) -> str | None:
+    """The cache key of :func:`~urdf2mjcf.solids.overlap_depth` of two links' source shapes
+    at these poses, along a contact's normal up to its depth (None when a mesh file
+    cannot be read)."""
     parts = []
     for link, pose in zip(links, poses, strict=True):
         elements = source_elements(ref, link)
         if elements is None:
             return None
         parts.append([elements, np.asarray(pose, float).round(12).tolist()])
-    payload = {"kind": "certificate-overlap", "format": 1, "samples": OVERLAP_SAMPLES, "seed": SEED}
-    return stored.key({**payload, "links": parts})
+    payload = {"kind": "certificate-overlap", "format": 2, "samples": OVERLAP_SAMPLES, "seed": SEED}
+    normal, limit = along
+    separation = [np.asarray(normal, float).round(9).tolist(), round(float(limit), 9)]
+    return stored.key({**payload, "links": parts, "along": separation})
 
 
 def check_interpenetration(
@@ -393,6 +401,7 @@ def check_interpenetration(
 
     ground = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
     deepest: dict[tuple[int, int], float] = {}
+    normals: dict[tuple[int, int], np.ndarray] = {}  # of the deepest, from the first to the second
     for i in range(d.ncon):
         c = d.contact[i]
         g1, g2 = sorted((int(c.geom1), int(c.geom2)))
@@ -403,6 +412,8 @@ def check_interpenetration(
         depth = -float(c.dist)
         if depth > deepest.get((g1, g2), -np.inf):
             deepest[(g1, g2)] = depth
+            normal = np.array(c.frame[:3], dtype=np.float64)
+            normals[(g1, g2)] = normal if g1 == int(c.geom1) else -normal
     deep = {k: v for k, v in deepest.items() if v > penetration}
     owner = geom_links(ref, m, sorted({g for pair in deep for g in pair}))
     links = {link.name: link for link in ref.urdf.robot.links}
@@ -416,7 +427,10 @@ def check_interpenetration(
         if l1 in links and l2 in links and l1 != l2:
             if frames is None:
                 frames = ref.frames(home_cfg(ref, m, d))
-            key = _overlap_key(ref, (links[l1], links[l2]), (frames[l1], frames[l2]))
+            along = normals[(g1, g2)]
+            key = _overlap_key(
+                ref, (links[l1], links[l2]), (frames[l1], frames[l2]), (along, depth)
+            )
             kept = stored.load(cache_root, key) if cache_root and key else None
             if kept is not None and stored.is_number(kept, low=0.0):
                 src_depth = float(kept)
@@ -426,7 +440,7 @@ def check_interpenetration(
                         src = source_shape(ref, links[name])
                         placed[name] = Placed.of(src.primitives, src.meshes, frames[name])
                 try:
-                    src_depth = overlap_depth(placed[l1], placed[l2])
+                    src_depth = overlap_depth(placed[l1], placed[l2], along=along, limit=depth)
                 except Exception:  # a mesh trimesh cannot test: not compared, said so
                     log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
                 if cache_root and key and src_depth is not None:

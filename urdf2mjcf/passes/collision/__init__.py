@@ -55,6 +55,7 @@ from ...errors import InputError, MeshError, URDFError
 from ...geometry import primitive_geom
 from ...ir import (
     COLLISION_SHAPES,
+    CONTACTS,
     Collision,
     CollisionShape,
     Geom,
@@ -327,8 +328,8 @@ def _extension_shapes(robot: Robot) -> dict[str, CollisionShape]:
         if ext.tag != "mujoco":
             continue
         for el in etree.fromstring(ext.xml.strip(), parser):
-            if el.tag != "collision":
-                continue
+            if el.tag != "collision" or "contacts" in el.attrib:
+                continue  # <collision contacts=...>: extension_contacts reads it
             link, shape = el.get("link"), el.get("shape")
             where = f"mujoco collision link='{excerpt(link or '', 60)}'"
             if set(el.attrib) != {"link", "shape"} or len(el):
@@ -347,6 +348,34 @@ def _extension_shapes(robot: Robot) -> dict[str, CollisionShape]:
             if link not in robot.link_map:
                 raise URDFError("no such link in the robot", file=robot.source, element=where)
             out[link] = shape  # type: ignore[assignment]
+    return out
+
+
+def extension_contacts(robot: Robot) -> str | None:
+    """``<mujoco><collision contacts="keep|resolve"/></mujoco>``, the last one in document
+    order (None: not said). The extension pass skips these elements too."""
+    out: str | None = None
+    parser = etree.XMLParser(remove_blank_text=True, remove_comments=True, remove_pis=True)
+    for ext in robot.extensions:
+        if ext.tag != "mujoco":
+            continue
+        for el in etree.fromstring(ext.xml.strip(), parser):
+            if el.tag != "collision" or "contacts" not in el.attrib:
+                continue
+            value = el.get("contacts") or ""
+            where = f"mujoco collision contacts='{excerpt(value, 20)}'"
+            if set(el.attrib) != {"contacts"} or len(el):
+                raise URDFError(
+                    'takes either link="LINK" shape="SHAPE" or contacts="keep|resolve" alone, '
+                    "and no content",
+                    file=robot.source,
+                    element=where,
+                )
+            if value not in CONTACTS:
+                raise URDFError(
+                    f"unknown value; valid: {', '.join(CONTACTS)}", file=robot.source, element=where
+                )
+            out = value
     return out
 
 
