@@ -133,6 +133,35 @@ class Primitive:
         return v @ self.pose[:3, :3].T + self.pose[:3, 3]
 
 
+@dataclass
+class Hull:
+    """A convex polytope (a mesh geom as MuJoCo collides with it)."""
+
+    points: np.ndarray
+    faces: np.ndarray = field(init=False)
+    planes: np.ndarray = field(init=False)  # (k, 4): unit normal, offset; n.p <= d inside
+    volume: float = field(init=False)
+    area: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        from scipy.spatial import ConvexHull
+
+        h = ConvexHull(self.points)
+        self.faces = h.simplices
+        # qhull splits each face into triangles: one plane per face is enough
+        planes = np.column_stack([h.equations[:, :3], -h.equations[:, 3]])
+        self.planes = np.unique(np.round(planes, 9), axis=0)
+        self.volume = float(h.volume)
+        self.area = float(h.area)
+
+    def sdf(self, points: np.ndarray) -> np.ndarray:
+        """Largest face-plane distance: exact inside, a lower bound outside."""
+        return (points @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1)
+
+    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        return sample_triangles(self.points[self.faces], n, rng)
+
+
 SourcePart = Primitive | MeshDistance
 """What a distance is measured to: a primitive exactly, a mesh by :class:`MeshDistance`."""
 
@@ -230,30 +259,43 @@ def overlap_depth(
     samples: int = OVERLAP_SAMPLES,
     along: np.ndarray | None = None,
     limit: float | None = None,
+    near: tuple[Primitive | Hull, Primitive | Hull] | None = None,
 ) -> float:
     """How deep two placed solids overlap (m): the deepest of either surface's sampled
     points inside the other; 0 when their bounding boxes are apart.
 
     With ``along`` (a direction that separates ``b`` from ``a``: MuJoCo's contact normal
-    from ``a``'s geom to ``b``'s) and ``limit``, also how far ``b`` must move along it
-    before no sampled point of either lies inside the other (bisected, up to
-    ``limit``), whichever is larger. That is what MuJoCo's penetration depth measures,
-    and what the deepest point undercuts where one solid pierces a thin other: a
-    finger through a 10 mm plate lies at most 5 mm inside it, however far it reaches
-    beyond it."""
+    from ``a``'s geom to ``b``'s), ``limit`` and ``near`` (those two convex geoms, in the
+    same frame), also how far ``b`` must move along it before no sampled point of
+    either, within its geom, lies inside the other within that one's geom (bisected,
+    up to ``limit``), whichever is larger. That is what MuJoCo's penetration depth of
+    the two geoms measures, and what the deepest point undercuts where one solid
+    pierces a thin other: a finger through a 10 mm plate lies at most 5 mm inside it,
+    however far it reaches beyond it. Kept within the two geoms, the test is about the
+    contact's own place: a link in its neighbour's clevis, moved along the normal,
+    would reach the clevis's other cheek, which is no part of this overlap."""
     ba, bb = a.bounds(), b.bounds()
     if ba is None or bb is None or (ba[0] > bb[1]).any() or (bb[0] > ba[1]).any():
         return 0.0
     rng = np.random.default_rng(SEED)
     on_a, on_b = a.sample(samples, rng), b.sample(samples, rng)
     depth = max(b.depth(on_a), a.depth(on_b))
-    if along is None or limit is None or depth <= TOUCHING_M:
+    if along is None or limit is None or near is None or depth <= TOUCHING_M:
         return depth
     n = np.asarray(along, dtype=np.float64)
     n = n / np.linalg.norm(n)
+    geom_a, geom_b = near
+    local_a = on_a[geom_a.sdf(on_a) <= TOUCHING_M]
+    local_b = on_b[geom_b.sdf(on_b) <= TOUCHING_M]
 
     def overlapping(t: float) -> bool:
-        return max(a.depth(on_b + t * n), b.depth(on_a - t * n)) > TOUCHING_M
+        moved_b = local_b + t * n  # b's points near the contact, moved, within a's geom
+        moved_b = moved_b[geom_a.sdf(moved_b) < 0]
+        back_a = local_a - t * n  # and a's, seen from b moved: within b's geom
+        back_a = back_a[geom_b.sdf(back_a) < 0]
+        inside = [a.depth(moved_b)] if len(moved_b) else []
+        inside += [b.depth(back_a)] if len(back_a) else []
+        return max(inside, default=0.0) > TOUCHING_M
 
     lo, hi = depth, max(limit, depth)
     if not overlapping(lo):
@@ -267,3 +309,35 @@ def overlap_depth(
         else:
             hi = mid
     return hi
+
+
+def geom_solid(m: Any, d: Any, g: int, frame: np.ndarray | None = None) -> Primitive | Hull | None:
+    """MuJoCo geom ``g`` as it collides (a mesh: its vertices' hull) where ``d`` puts it,
+    in ``frame`` (4x4 world <- frame; None: the world); None for a plane, height field
+    or SDF."""
+    import mujoco
+
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = np.asarray(d.geom_xmat[g]).reshape(3, 3), d.geom_xpos[g]
+    if frame is not None:
+        pose = np.linalg.inv(frame) @ pose
+    kind = int(m.geom_type[g])
+    types = mujoco.mjtGeom
+    if kind == types.mjGEOM_MESH:
+        mid = int(m.geom_dataid[g])
+        adr, num = int(m.mesh_vertadr[mid]), int(m.mesh_vertnum[mid])
+        v = np.asarray(m.mesh_vert[adr : adr + num], dtype=np.float64)
+        try:
+            return Hull(v @ pose[:3, :3].T + pose[:3, 3])
+        except Exception:  # qhull: a flat or degenerate mesh
+            return None
+    names = {
+        types.mjGEOM_SPHERE: "sphere",
+        types.mjGEOM_CAPSULE: "capsule",
+        types.mjGEOM_ELLIPSOID: "ellipsoid",
+        types.mjGEOM_CYLINDER: "cylinder",
+        types.mjGEOM_BOX: "box",
+    }
+    if kind in names:
+        return Primitive(names[kind], np.array(m.geom_size[g], dtype=np.float64), pose)
+    return None

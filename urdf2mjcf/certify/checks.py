@@ -53,7 +53,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..mesh_distance import SEED
-from ..solids import OVERLAP_SAMPLES, PENETRATION_M, Placed, overlap_depth
+from ..solids import (
+    OVERLAP_SAMPLES,
+    PENETRATION_M,
+    Hull,
+    Placed,
+    Primitive,
+    geom_solid,
+    overlap_depth,
+)
 from . import stored
 from .collision import colliding_geoms, geom_links, source_elements, source_shape, zero_size
 
@@ -369,24 +377,45 @@ def _geom_label(m: mujoco.MjModel, g: int) -> str:
     return f"{body} geom #{k}"
 
 
+def _signature(solid: Primitive | Hull) -> list[Any]:
+    """A placed geom as a cache key's part: a hull by its points' hash, a primitive whole."""
+    import hashlib
+
+    if isinstance(solid, Hull):
+        return ["hull", hashlib.sha256(np.asarray(solid.points).round(12).tobytes()).hexdigest()]
+    return [solid.kind, solid.size.round(12).tolist(), solid.pose.round(12).tolist()]
+
+
+def _root_frame(ref: Reference, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+    """4x4 world <- the description's root link, where ``d`` has it (the frame the
+    reference's link frames are given in)."""
+    import mujoco
+
+    frame = np.eye(4)
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, str(ref.urdf.base_link))
+    if body > 0:
+        frame[:3, :3], frame[:3, 3] = np.asarray(d.xmat[body]).reshape(3, 3), d.xpos[body]
+    return frame
+
+
 def _overlap_key(
     ref: Reference,
     links: tuple[Any, Any],
     poses: tuple[Any, Any],
-    along: tuple[np.ndarray, float],
+    along: tuple[np.ndarray, float, list[Any] | None],
 ) -> str | None:
     """The cache key of :func:`~urdf2mjcf.solids.overlap_depth` of two links' source shapes
-    at these poses, along a contact's normal up to its depth (None when a mesh file
-    cannot be read)."""
+    at these poses, along a contact's normal up to its depth within its two geoms
+    (:func:`_signature`; None when a mesh file cannot be read)."""
     parts = []
     for link, pose in zip(links, poses, strict=True):
         elements = source_elements(ref, link)
         if elements is None:
             return None
         parts.append([elements, np.asarray(pose, float).round(12).tolist()])
-    payload = {"kind": "certificate-overlap", "format": 2, "samples": OVERLAP_SAMPLES, "seed": SEED}
-    normal, limit = along
-    separation = [np.asarray(normal, float).round(9).tolist(), round(float(limit), 9)]
+    payload = {"kind": "certificate-overlap", "format": 3, "samples": OVERLAP_SAMPLES, "seed": SEED}
+    normal, limit, geoms = along
+    separation = [np.asarray(normal, float).round(9).tolist(), round(float(limit), 9), geoms]
     return stored.key({**payload, "links": parts, "along": separation})
 
 
@@ -418,6 +447,7 @@ def check_interpenetration(
     owner = geom_links(ref, m, sorted({g for pair in deep for g in pair}))
     links = {link.name: link for link in ref.urdf.robot.links}
     frames: dict[str, np.ndarray] | None = None
+    root: np.ndarray | None = None
     placed: dict[str, Any] = {}
     pairs: list[dict[str, Any]] = []
     failures: list[str] = []
@@ -428,8 +458,15 @@ def check_interpenetration(
             if frames is None:
                 frames = ref.frames(home_cfg(ref, m, d))
             along = normals[(g1, g2)]
+            if root is None:
+                root = _root_frame(ref, m, d)
+            near_a, near_b = geom_solid(m, d, g1, root), geom_solid(m, d, g2, root)
+            near = (near_a, near_b) if near_a is not None and near_b is not None else None
             key = _overlap_key(
-                ref, (links[l1], links[l2]), (frames[l1], frames[l2]), (along, depth)
+                ref,
+                (links[l1], links[l2]),
+                (frames[l1], frames[l2]),
+                (along, depth, None if near is None else [_signature(x) for x in near]),
             )
             kept = stored.load(cache_root, key) if cache_root and key else None
             if kept is not None and stored.is_number(kept, low=0.0):
@@ -440,7 +477,9 @@ def check_interpenetration(
                         src = source_shape(ref, links[name])
                         placed[name] = Placed.of(src.primitives, src.meshes, frames[name])
                 try:
-                    src_depth = overlap_depth(placed[l1], placed[l2], along=along, limit=depth)
+                    src_depth = overlap_depth(
+                        placed[l1], placed[l2], along=along, limit=depth, near=near
+                    )
                 except Exception:  # a mesh trimesh cannot test: not compared, said so
                     log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
                 if cache_root and key and src_depth is not None:

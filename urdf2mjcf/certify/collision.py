@@ -71,7 +71,7 @@ from ..mesh_distance import (
     to_manifold,
     union_volume,
 )
-from ..solids import Primitive, SourcePart, largest_distance, sample_union
+from ..solids import Hull, Primitive, SourcePart, largest_distance, sample_union
 from . import stored
 
 if TYPE_CHECKING:
@@ -88,35 +88,6 @@ _COLLISION_NAME = re.compile(r"^(?P<link>.*)_collision(?:_\d+)?$")
 
 
 # -- shapes ------------------------------------------------------------------
-
-
-@dataclass
-class Hull:
-    """A convex polytope (a mesh geom as MuJoCo collides with it), in the link frame."""
-
-    points: np.ndarray
-    faces: np.ndarray = field(init=False)
-    planes: np.ndarray = field(init=False)  # (k, 4): unit normal, offset; n.p <= d inside
-    volume: float = field(init=False)
-    area: float = field(init=False)
-
-    def __post_init__(self) -> None:
-        from scipy.spatial import ConvexHull
-
-        h = ConvexHull(self.points)
-        self.faces = h.simplices
-        # qhull splits each face into triangles: one plane per face is enough
-        planes = np.column_stack([h.equations[:, :3], -h.equations[:, 3]])
-        self.planes = np.unique(np.round(planes, 9), axis=0)
-        self.volume = float(h.volume)
-        self.area = float(h.area)
-
-    def sdf(self, points: np.ndarray) -> np.ndarray:
-        """Largest face-plane distance: exact inside, a lower bound outside."""
-        return (points @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1)
-
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return sample_triangles(self.points[self.faces], n, rng)
 
 
 # -- the source ---------------------------------------------------------------

@@ -18,7 +18,8 @@ never asked for them:
   MuJoCo finds more than :data:`~urdf2mjcf.solids.PENETRATION_M` deep in each other
   at home, while the description's ``<collision>`` shapes of the links concerned
   overlap by no more than that there (:func:`~urdf2mjcf.solids.overlap_depth`, the
-  certificate's own measure and attribution), gets an ``<exclude>``. The collision
+  certificate's own measure and attribution, judged like it geom pair by geom
+  pair: one such geom pair is enough), gets an ``<exclude>``. The collision
   pass has already cut what a finer decomposition fixes, a hollow part that its
   hull would fill (a tube of a telescoping arm); what remains is convex hulls of
   concave links, bridging a joint's clearance. An overlap the description's own
@@ -46,7 +47,7 @@ from lxml import etree
 
 from ..ir import Box, Capsule, Cylinder, Link, MeshRef, Model, Note, Sphere
 from ..mjmodel import HomeCompiles, compile_home
-from ..solids import PENETRATION_M, Placed, Primitive, overlap_depth
+from ..solids import PENETRATION_M, Hull, Placed, Primitive, geom_solid, overlap_depth
 from ..transforms import pose_matrix
 from . import collision
 from .actuators import config as actuator_file
@@ -162,8 +163,9 @@ def _exclusions(
     created (in body order)."""
     owner = _geom_links(model, m)
     deepest: dict[tuple[int, int], float] = {}
-    # body pair -> link pair -> (the deepest contact, its normal from the first to the second)
-    by_links: dict[tuple[int, int], dict[tuple[str, str], tuple[float, np.ndarray]]] = {}
+    # body pair -> geom pair -> its deepest contact: (depth, normal from the first geom to
+    # the second), the geoms in body order, as the certificate judges each geom pair
+    by_geoms: dict[tuple[int, int], dict[tuple[int, int], tuple[float, np.ndarray]]] = {}
     for i in range(d.ncon):
         c = d.contact[i]
         g1, g2 = int(c.geom1), int(c.geom2)
@@ -177,11 +179,9 @@ def _exclusions(
             (b1, g1), (b2, g2), normal = (b2, g2), (b1, g1), -normal
         depth = -float(c.dist)
         deepest[(b1, b2)] = max(deepest.get((b1, b2), 0.0), depth)
-        links = by_links.setdefault((b1, b2), {})
-        key = (owner[g1], owner[g2])
-        if key not in links or depth > links[key][0]:
-            links[key] = (depth, normal)
-
+        geoms = by_geoms.setdefault((b1, b2), {})
+        if (g1, g2) not in geoms or depth > geoms[(g1, g2)][0]:
+            geoms[(g1, g2)] = (depth, normal)
     out = []
     base_pairs = _base_pairs(model, m, owner)
     for pair in base_pairs:
@@ -195,18 +195,18 @@ def _exclusions(
             continue
         if frames is None:
             frames = _link_frames(model, m, d)
-        source = 0.0
-        for (l1, l2), (depth, normal) in sorted(by_links[pair].items(), key=lambda kv: kv[0]):
-            if depth <= penetration or l1 == l2:
-                continue
-            overlap = _source_overlap(model, (l1, l2), frames, placed, normal, depth)
-            if overlap is None:  # not measured: not ours to take away
-                source = np.inf
+        # The certificate fails a geom pair deeper than penetration whose links' shapes
+        # are not: one such pair, and the body pair is the conversion's to resolve.
+        ranked = sorted(by_geoms[pair].items(), key=lambda kv: (-kv[1][0], kv[0]))
+        for (g1, g2), (depth, normal) in ranked:
+            l1, l2 = owner[g1], owner[g2]
+            if depth <= penetration:
                 break
-            source = max(source, overlap)
-        if source > penetration:
-            continue  # the description's own overlap (or one not measured): left
-        out.append(_Exclusion(pair, deepest[pair], source, base=False))
+            near = (geom_solid(m, d, g1), geom_solid(m, d, g2))
+            source = _source_overlap(model, (l1, l2), frames, placed, (normal, depth, near))
+            if source is not None and source <= penetration:
+                out.append(_Exclusion(pair, deepest[pair], source, base=False))
+                break
     return out
 
 
@@ -312,11 +312,10 @@ def _source_overlap(
     links: tuple[str, str],
     frames: Mapping[str, np.ndarray],
     placed: dict[str, Placed | None],
-    normal: np.ndarray,
-    depth: float,
+    contact: tuple[np.ndarray, float, tuple[Primitive | Hull | None, Primitive | Hull | None]],
 ) -> float | None:
     """How deep the two links' ``<collision>`` shapes overlap at home, also along the
-    normal of the model's contact up to its depth (:func:`~urdf2mjcf.solids.overlap_depth`,
+    model's contact (its normal, depth and two geoms: :func:`~urdf2mjcf.solids.overlap_depth`,
     as the certificate measures it); None when one cannot be placed or measured."""
     l1, l2 = links
     for name in links:
@@ -329,7 +328,9 @@ def _source_overlap(
     if a is None or b is None:
         return None
     try:
-        return overlap_depth(a, b, along=normal, limit=depth)
+        normal, depth, (near_a, near_b) = contact
+        near = (near_a, near_b) if near_a is not None and near_b is not None else None
+        return overlap_depth(a, b, along=normal, limit=depth, near=near)
     except Exception:  # a mesh trimesh cannot test: not measured, so not excluded
         log.info("overlap of %s / %s not measured", l1, l2, exc_info=True)
         return None
