@@ -198,6 +198,54 @@ def test_a_bad_contacts_setting_is_one_error_naming_it(tmp_path: Path) -> None:
     assert not (tmp_path / "o").exists()
 
 
+def test_adjacency_is_moveits_through_bare_frames_and_fused_links(tmp_path: Path) -> None:
+    """A bare mount frame (no geometry) between the base and link 1 leaves them
+    adjacent; a plate with geometry fixed between them makes the plate link 1's
+    neighbour instead, and fused into the base (--fuse-fixed) it is the base's body."""
+    base = mesh_file(tmp_path, "base.stl", pocketed_base())
+    cylinder = '<cylinder radius="0.03" length="0.2"/>'
+    bare = (
+        link("base", base)
+        + '<link name="mount"/>'
+        + link("link1", cylinder, "0 0 0.1")
+        + joint("fix", "fixed", "base", "mount", "0 0 0")
+        + joint("j1", "revolute", "mount", "link1", "0 0 0.01")
+    )
+    convert(write(tmp_path, bare, "bare"), tmp_path / "bare")
+    assert excludes(tmp_path / "bare" / "robot.xml") == [("base", "link1")]
+    plate = (
+        link("base", base)
+        + link("plate", '<box size="0.08 0.08 0.004"/>', "0 0 0.005")
+        + link("link1", cylinder, "0 0 0.1")
+        + joint("fix", "fixed", "base", "plate", "0 0 0")
+        + joint("j1", "revolute", "plate", "link1", "0 0 0.01")
+    )
+    src = write(tmp_path, plate, "plate")
+    report = convert(src, tmp_path / "plate")
+    xml = tmp_path / "plate" / "robot.xml"
+    # link 1 lies in the base's hull 40 mm deep: not its neighbour, but the hull's doing
+    assert excludes(xml) == [("plate", "link1"), ("base", "link1")]
+    notes = excluded_notes(report)
+    assert "child of the fixed base" in notes["contact link 'plate' / link 'link1'"]
+    assert notes["contact link 'base' / link 'link1'"].startswith(
+        "excluded: the conversion's collision geoms overlap at home"
+    )
+    convert(src, tmp_path / "fused", fuse_fixed=True)
+    assert excludes(tmp_path / "fused" / "robot.xml") == [("base", "link1")]
+
+
+def test_a_world_link_with_geometry_does_not_collide_with_its_children(tmp_path: Path) -> None:
+    body = (
+        link("world", '<box size="1 1 0.02"/>', "0 0 -0.005")
+        + link("arm", '<box size="0.05 0.05 0.3"/>', "0 0 0.1")
+        + joint("j", "revolute", "world", "arm", "0 0 0")
+    )
+    report = convert(write(tmp_path, body, "table"), tmp_path / "out")
+    assert excludes(tmp_path / "out" / "robot.xml") == [("world", "arm")]
+    assert "child of the fixed base" in excluded_notes(report)["contact link 'world' / link 'arm'"]
+    assert report.certificate.passed, report.certificate.failures
+
+
 def test_a_floating_base_gets_no_base_exclusion(tmp_path: Path) -> None:
     """With a free root MuJoCo filters the root's children itself: nothing to add."""
     report = convert(arm_in_a_pocket(tmp_path), tmp_path / "free", floating_base=True)
