@@ -19,6 +19,7 @@ from .ir import Model, UrdfDocument
 from .passes import (
     actuators,
     collision,
+    contacts,
     emit,
     extension,
     inertia,
@@ -47,6 +48,7 @@ class ConvertOptions:
     sensors: sensors.SensorConfig = field(default_factory=sensors.SensorConfig)
     emit: emit.EmitConfig = field(default_factory=emit.EmitConfig)
     extension: extension.ExtensionConfig = field(default_factory=extension.ExtensionConfig)
+    contacts: contacts.ContactsConfig = field(default_factory=contacts.ContactsConfig)
     validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
     certify: CertifyConfig = field(default_factory=CertifyConfig)
     """The fidelity certificate of the written model (see :mod:`urdf2mjcf.certify`)."""
@@ -68,6 +70,7 @@ def make_options(
     link_collision: Mapping[str, str] | None = None,
     primitive_tolerance: float = collision.primitives.TOLERANCE_MM,
     primitive_volume_ratio: float = collision.primitives.MAX_VOLUME_RATIO,
+    keep_contacts: bool = False,
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
     workers: int = 0,
@@ -100,7 +103,8 @@ def make_options(
     collision meshes become (``decompose``, ``hull``, ``primitive`` or ``auto``), for
     every link; ``link_collision``: link name -> shape, above every other route;
     ``primitive_tolerance`` (mm) and ``primitive_volume_ratio``: what ``auto`` accepts
-    of a primitive fit (see :mod:`urdf2mjcf.passes.collision`)."""
+    of a primitive fit (see :mod:`urdf2mjcf.passes.collision`). ``keep_contacts``: write
+    no contact exclusion (see :mod:`urdf2mjcf.passes.contacts`)."""
     from .passes.xacro_guard import trust_from_env
 
     return ConvertOptions(
@@ -146,6 +150,11 @@ def make_options(
             fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name
         ),
         extension=extension.ExtensionConfig(enabled=mujoco_extension, check=validate_model),
+        contacts=contacts.ContactsConfig(
+            keep=keep_contacts,
+            config_file=Path(actuator_config) if actuator_config else None,
+            mujoco_extension=mujoco_extension,
+        ),
         validate=validate.ValidateConfig(enabled=validate_model),
         certify=CertifyConfig(
             enabled=certify,
@@ -188,6 +197,7 @@ def _build(
     model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
+    result = contacts.run(result, model, options.contacts, compiles)
     return doc, replace(model, notes=model.notes + result.notes), result
 
 

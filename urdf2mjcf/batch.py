@@ -258,6 +258,7 @@ def _options(kw: dict[str, Any]) -> dict[str, Any]:
         "collision_shape": kw["collision_shape"],
         "primitive_tolerance": kw["primitive_tolerance"],
         "primitive_volume_ratio": kw["primitive_volume_ratio"],
+        "keep_contacts": kw["keep_contacts"],
         "actuator_config": kw["actuator_config"],
         "gravcomp": kw["gravcomp"],
         "joint_sensors": not kw["no_joint_sensors"],

@@ -101,6 +101,7 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
 )
 @shared_option("primitive_tolerance")
 @shared_option("primitive_volume_ratio")
+@shared_option("keep_contacts")
 @shared_option("actuator_config")
 @shared_option("gravcomp")
 @shared_option("no_joint_sensors")
@@ -160,6 +161,7 @@ def urdf2mjcf_command(
     link_collision: tuple[tuple[str, str], ...],
     primitive_tolerance: float,
     primitive_volume_ratio: float,
+    keep_contacts: bool,
     actuator_config: Path | None,
     gravcomp: bool,
     no_joint_sensors: bool,
@@ -223,6 +225,7 @@ def urdf2mjcf_command(
             link_collision=dict(link_collision),
             primitive_tolerance=primitive_tolerance,
             primitive_volume_ratio=primitive_volume_ratio,
+            keep_contacts=keep_contacts,
             cache_dir=cache_dir,
             use_cache=not no_cache,
             workers=jobs,

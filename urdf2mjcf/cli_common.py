@@ -142,6 +142,15 @@ _SHARED: dict[str, tuple[tuple[str, ...], dict[str, Any]]] = {
             "help": "auto: largest primitive volume / mesh volume.",
         },
     ),
+    "keep_contacts": (
+        ("--keep-contacts",),
+        {
+            "is_flag": True,
+            "help": "Exclude no contact pair: by default a fixed base does not collide with "
+            "its children, nor two bodies whose collision geoms the conversion made overlap "
+            "at home (each exclusion listed in the certificate's changes).",
+        },
+    ),
     "actuator_config": (
         ("--actuator-config",),
         {

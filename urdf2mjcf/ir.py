@@ -563,15 +563,20 @@ NoteKind = Literal[
     "hull",
     "primitive",
     "decimated",
+    "excluded",
     "info",
 ]
 """``decomposed``: CoACD ran; ``cached``: a decomposition came from the disk cache;
-``primitive``: a collision mesh became fitted primitives."""
+``primitive``: a collision mesh became fitted primitives; ``excluded``: a pair of bodies
+the conversion does not collide (a contact ``<exclude>``)."""
 
 CollisionShape = Literal["decompose", "hull", "primitive", "auto"]
 """What a collision mesh becomes (see :mod:`urdf2mjcf.passes.collision`)."""
 
 COLLISION_SHAPES: tuple[CollisionShape, ...] = ("decompose", "hull", "primitive", "auto")
+CONTACTS = ("keep", "resolve")
+"""What a description may say of the contacts the conversion creates at home: ``keep``
+them as converted, or ``resolve`` them (the contacts pass's exclusions, the default)."""
 
 
 @dataclass(frozen=True)

@@ -298,13 +298,14 @@ def without_visuals(xml: Document) -> Any:
 
 def shape(xml: Document) -> bytes:
     """The document without what moves or shapes nothing: actuators, sensors,
-    ``<visual>``, sites, cameras, the model name and the keyframes' controls.
-    Two documents of one shape put every body and geom in the same place."""
+    ``<visual>``, ``<contact>`` (pairs and exclusions only filter contacts), sites,
+    cameras, the model name and the keyframes' controls. Two documents of one shape
+    put every body and geom in the same place."""
     from lxml import etree
 
     root = _tree(xml)
     root.attrib.pop("model", None)
-    for tag in ("actuator", "sensor", "visual"):
+    for tag in ("actuator", "sensor", "visual", "contact"):
         for el in root.findall(tag):
             root.remove(el)
     for el in list(root.iter("site", "camera")):

@@ -111,7 +111,9 @@ class Report:
         ]
         counts = {
             k: len(self.of_kind(k))
-            for k in ("repaired", "estimated", "decomposed", "cached", "decimated", "warning")
+            for k in (
+                "repaired", "estimated", "decomposed", "cached", "decimated", "excluded", "warning"
+            )
         }
         extra = ", ".join(f"{v} {k}" for k, v in counts.items() if v)
         if extra:

@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 import trimesh
 from lxml import etree
+from scipy.spatial import ConvexHull
 
 from tests.corpus import example_robot_data_share, example_robot_data_urdfs
 from urdf2mjcf import api
 from urdf2mjcf.certify import reference
 from urdf2mjcf.certify.collision import HAUSDORFF_MM, HAUSDORFF_REL, collision_section
+from urdf2mjcf.mesh_distance import enclosed_volume
 from urdf2mjcf.passes import xacro
 
 INERTIAL = (
@@ -213,3 +215,103 @@ def test_figures_kept_in_the_cache_are_the_figures_measured(
     for entry in entries:
         entry.write_text('{"hausdorff_mm": -1, "size_mm": "x"}')
     assert collision_section(ref, m, cache_root=root) == fresh
+
+
+# -- volumes that a part wound inside out would cancel ------------------------------
+
+
+def two_part_finger() -> tuple[trimesh.Trimesh, trimesh.Trimesh]:
+    """A phalanx (20 x 20 x 40 mm) and a narrower one (18 x 18 x 36 mm) overlapping it
+    by 8 mm, as two closed parts of one mesh."""
+    proximal = trimesh.creation.box(extents=[0.02, 0.02, 0.04])
+    distal = trimesh.creation.box(extents=[0.018, 0.018, 0.036])
+    distal.apply_translation([0.0, 0.0, 0.03])  # from z = 12 mm: 8 mm into the first
+    return proximal, distal
+
+
+def test_enclosed_volume_takes_every_closed_part_outward() -> None:
+    a, b = (0.1, 0.2, 0.3), (0.1, 0.1, 0.1)
+    box = trimesh.creation.box(extents=a)
+    far = trimesh.creation.box(extents=b)
+    far.apply_translation([1.0, 0.0, 0.0])
+    far.invert()
+    assert abs(trimesh.util.concatenate([box, far]).volume - (0.006 - 0.001)) < 1e-12
+    assert enclosed_volume(trimesh.util.concatenate([box, far])) == pytest.approx(0.007)
+    near = trimesh.creation.box(extents=b)
+    near.apply_translation([0.05, 0.0, 0.0])  # half inside the first box: 0.0005 m^3 shared
+    near.invert()
+    assert enclosed_volume(trimesh.util.concatenate([box, near])) == pytest.approx(0.0065, rel=1e-5)
+    # an inner shell (a cavity no other part can reach) adds nothing
+    outer, inner = trimesh.creation.box(extents=a), trimesh.creation.box(extents=b)
+    inner.invert()
+    assert enclosed_volume(trimesh.util.concatenate([outer, inner])) == pytest.approx(0.006)
+    # a few faces turned the wrong way round in a single part
+    faces = box.faces.copy()
+    faces[:3] = faces[:3, ::-1]
+    flipped = trimesh.Trimesh(box.vertices, faces, process=False)
+    assert enclosed_volume(flipped) == pytest.approx(0.006)
+    # an open part has no inside
+    assert enclosed_volume(trimesh.Trimesh(box.vertices, box.faces[1:], process=False)) is None
+
+
+def test_finger_with_a_part_wound_inside_out_measures_its_true_volume_ratio(
+    tmp_path: Path,
+) -> None:
+    """The false alarm of a hand family: one of a finger mesh's two parts is wound inside
+    out, so the signed volumes cancel and the hull measured 11.5 x the mesh. The ratio
+    is the hull's volume over the union of the parts wound right (manifold3d)."""
+    proximal, distal = two_part_finger()
+    reference_union = trimesh.boolean.union([proximal, distal], engine="manifold").volume
+    inverted = distal.copy()
+    inverted.invert()
+    finger = trimesh.util.concatenate([proximal, inverted])
+    finger.export(tmp_path / "finger.stl")
+    hull = ConvexHull(finger.vertices).volume
+    assert hull / abs(trimesh.load(tmp_path / "finger.stl").volume) > 5  # what cancelled
+    ref, out = convert_and_load(
+        one_link(tmp_path, '<geometry><mesh filename="finger.stl"/></geometry>'), tmp_path
+    )
+    section = collision_section(ref, mujoco.MjModel.from_xml_path(str(out)))
+    entry = section["links"]["body"]
+    assert entry["geoms"] == 1
+    assert entry["volume_ratio"] == pytest.approx(hull / reference_union, rel=1e-4)
+    assert entry["ok"] and section["failures"] == []
+
+
+def test_zero_size_shape_is_the_descriptions_flaw_said_as_such(tmp_path: Path) -> None:
+    """A radius-0 sphere is the description's flaw: the conversion warns naming the
+    description, and the certificate says why the model has no geom for it, as a
+    warning, not the conversion's failure. A zero-size shape beside a real one is left
+    out of that link's figures."""
+    src = tmp_path / "tip.urdf"
+    src.write_text(
+        '<robot name="r">'
+        f'<link name="base"><collision><geometry><box size="0.1 0.1 0.1"/></geometry>'
+        f"</collision>{INERTIAL}</link>"
+        f'<link name="tip"><collision><geometry><sphere radius="0"/></geometry></collision>'
+        f"{INERTIAL}</link>"
+        f'<link name="pad"><collision><geometry><sphere radius="0"/></geometry></collision>'
+        f'<collision><geometry><sphere radius="0.02"/></geometry></collision>{INERTIAL}</link>'
+        '<joint name="j" type="revolute"><parent link="base"/><child link="tip"/>'
+        '<origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<joint name="k" type="fixed"><parent link="tip"/><child link="pad"/>'
+        '<origin xyz="0 0 0.2"/></joint></robot>'
+    )
+    report = api.convert(src, tmp_path / "robot.xml", scene=False)
+    (warning,) = [n for n in report.warnings if "link 'tip' collision" in n.element]
+    assert str(src) in warning.element and "zero size" in warning.message
+    certificate = report.certificate
+    assert certificate.passed, certificate.failures
+    assert not any("no colliding geom" in f for f in certificate.failures)
+    section = certificate.sections["collision"]
+    tip = section["links"]["tip"]
+    assert tip["ok"] and tip["geoms"] == 0
+    assert tip["zero_size"] == ["sphere of radius 0"]
+    assert "the description's flaw" in tip["reason"]
+    (line,) = section["warnings"]
+    assert line.startswith("collision tip: no colliding geom because the description's")
+    assert "sphere of radius 0" in line and "not the conversion's" in line
+    pad = section["links"]["pad"]  # measured against its real sphere only
+    assert pad["zero_size"] == ["sphere of radius 0"]
+    assert pad["volume_ratio"] == pytest.approx(1.0, abs=1e-9) and pad["ok"]

@@ -31,6 +31,7 @@ from urdf2mjcf.ir import (
     Sphere,
     Visual,
 )
+from urdf2mjcf.mesh_distance import VOLUME_RATIO
 from urdf2mjcf.passes import collision
 from urdf2mjcf.passes.collision import CollisionConfig
 from urdf2mjcf.passes.collision.convexity import hull_fit
@@ -82,6 +83,13 @@ def open_box() -> trimesh.Trimesh:
     box = trimesh.creation.box((0.1, 0.1, 0.1))
     top = np.flatnonzero(box.face_normals[:, 2] > 0.9)
     return drop_faces(box, top)
+
+
+def cracked_box() -> trimesh.Trimesh:
+    """A box with one triangle of its top face missing: a crack, not an opening."""
+    box = trimesh.creation.box((0.1, 0.1, 0.1))
+    top = np.flatnonzero(box.face_normals[:, 2] > 0.9)
+    return drop_faces(box, top[:1])
 
 
 def open_u_shape() -> trimesh.Trimesh:
@@ -263,7 +271,7 @@ def test_parts_are_placed_at_the_element_origin_in_the_mesh_frame(build, cfg):
 
 
 def test_non_watertight_near_convex_meshes_become_hulls(build, cfg):
-    sphere, box = cracked_sphere(), open_box()
+    sphere, box = cracked_sphere(), cracked_box()
     assert not sphere.is_watertight and not box.is_watertight
     link = Link(
         "head",
@@ -274,6 +282,56 @@ def test_non_watertight_near_convex_meshes_become_hulls(build, cfg):
     assert len(geoms) == 2 and all("hull" in g.mesh for g in geoms)
     assert "decomposed" not in kinds(out)
     assert asset_data(out, geoms[1].mesh).volume == pytest.approx(1e-3, rel=1e-5)
+
+
+def test_open_topped_box_is_decomposed_as_the_certificate_would_fail_its_hull(build, cfg):
+    """A cup passes the hull gap (0.016), but its hull's lid lies 47 mm from any of its
+    faces, past the certificate's distance tolerance (a quarter of its 173 mm
+    diagonal): the certificate's own figures send it to CoACD."""
+    cup = open_box()
+    diagonal = float(np.linalg.norm(cup.extents))
+    lid_centre = np.array([[0.0, 0.0, 0.05]])
+    # the reference: the lid's centre against every face of the cup, exactly
+    _, to_cup, _ = trimesh.proximity.closest_point(cup, lid_centre)
+    assert to_cup[0] > 0.25 * diagonal
+    assert hull_fit(cup).gap <= collision.CollisionConfig.max_hull_gap
+    out = collision.run(
+        build.model(Link("cup", collisions=(col(build.mesh("cup.stl", cup)),))), cfg
+    )
+    assert kinds(out).count("decomposed") == 1
+    (note,) = [n for n in out.notes if n.kind == "decomposed"]
+    assert "hull sticks out" in note.message and "tolerance 43.3 mm" in note.message
+    assert len(out.collision_geoms["cup"]) > 1
+
+
+def tube(outer: float, inner: float, length: float) -> trimesh.Trimesh:
+    return trimesh.creation.annulus(r_min=inner, r_max=outer, height=length, sections=48)
+
+
+def test_thin_tube_is_decomposed_not_hulled_by_the_certificates_volume_rule(build, cfg):
+    """A tube's hull passes the gap (its surface lies on the tube) but is the solid
+    cylinder, 5.26 x the tube's volume by the analytic formula: past the
+    certificate's 5, so it is cut, finely (the default remesh would fill the wall),
+    into parts that leave the bore open and enclose less than 5 x the tube."""
+    ro, ri, length = 0.03, 0.027, 0.2
+    pipe = tube(ro, ri, length)
+    assert hull_fit(pipe).gap <= collision.CollisionConfig.max_hull_gap
+    analytic = ro**2 / (ro**2 - ri**2)
+    assert analytic > VOLUME_RATIO[1]
+    out = collision.run(
+        build.model(Link("tube", collisions=(col(build.mesh("t.stl", pipe)),))), cfg
+    )
+    (note,) = [n for n in out.notes if n.kind == "decomposed"]
+    assert f"hull volume {analytic:.3g} x the mesh's: a hollow part" in note.message
+    parts = part_meshes(out, "tube")
+    assert len(parts) > 4
+    union = trimesh.boolean.union(parts, engine="manifold").volume
+    assert union / (np.pi * (ro**2 - ri**2) * length) < VOLUME_RATIO[1]
+    # the bore stays open: no part's surface comes within 0.8 of the inner radius of the
+    # axis (the hull fills it; the parts' chords between the wall's vertices cut in a little)
+    for part in parts:
+        points, _ = trimesh.sample.sample_surface(part, 2000, seed=0)
+        assert np.linalg.norm(points[:, :2], axis=1).min() > 0.8 * ri
 
 
 def test_non_watertight_concave_mesh_is_decomposed(build, cfg):

@@ -29,6 +29,7 @@ import urdf2mjcf
 from urdf2mjcf import untrusted
 from urdf2mjcf.ir import MeshData, NoteKind
 from urdf2mjcf.passes import meshes
+from urdf2mjcf.passes.collision.convexity import HullFigures
 from urdf2mjcf.passes.collision.decompositions import DecompositionCache
 from urdf2mjcf.passes.meshes import cache as mesh_cache
 
@@ -311,7 +312,12 @@ def load_all(d: dict[str, Any], coacd: bytes | None = None, gap: bytes | None = 
         if hull is not None:
             assert_mesh(hull)
         value = cache.load_gap(KEY)
+        figures = cache.load_hull_figures(KEY)
     assert value is None or (isinstance(value, float) and math.isfinite(value) and value >= 0)
+    if figures is not None:
+        numbers = [figures.hausdorff_m, figures.diagonal_m]
+        numbers += [] if figures.volume_ratio is None else [figures.volume_ratio]
+        assert all(isinstance(x, float) and math.isfinite(x) and x >= 0 for x in numbers)
 
 
 @SETTINGS
@@ -326,6 +332,9 @@ def test_decomposition_arbitrary_bytes_are_a_miss(decomposition, data):
 def test_hull_gap_arbitrary_json_is_a_number_or_a_miss(decomposition, value):
     load_all(decomposition, gap=json.dumps({"key": KEY, "gap": value}).encode())
     load_all(decomposition, gap=json.dumps(value).encode())
+    load_all(decomposition, gap=json.dumps({"key": KEY, "gap": 0.1, "hull": value}).encode())
+    hull = {"volume_ratio": value, "hausdorff_m": value, "diagonal_m": 0.1}
+    load_all(decomposition, gap=json.dumps({"key": KEY, "gap": 0.1, "hull": hull}).encode())
 
 
 ARRAYS = hnp.arrays(
@@ -383,3 +392,7 @@ def test_the_decomposition_reader_still_hits_on_real_entries(decomposition):
     assert len(cache.load(KEY) or []) == 2
     assert cache.load_hull(KEY) is not None
     assert cache.load_gap(KEY) == 0.25
+    assert cache.load_hull_figures(KEY) is None  # a gap stored without the hull's figures
+    figures = HullFigures(volume_ratio=None, hausdorff_m=0.003, diagonal_m=0.2)
+    cache.store_gap(KEY, 0.25, figures)
+    assert cache.load_gap(KEY) == 0.25 and cache.load_hull_figures(KEY) == figures

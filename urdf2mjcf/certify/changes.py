@@ -1,8 +1,8 @@
 """What a model changed from its description, and why.
 
 For our own conversion the notes say it (inertials repaired or estimated, geoms
-and meshes dropped, decimations, convex decompositions, liberties taken as
-warnings), and its intermediate representation gives the inertials it
+and meshes dropped, decimations, convex decompositions, contact exclusions,
+liberties taken as warnings), and its intermediate representation gives the inertials it
 supplied. For a model we did not write, the links whose inertial the model may
 supply are found by rule: those the description leaves without one (no
 ``<inertial>``, or mass 0) and those whose tensor MuJoCo rejects.
@@ -21,9 +21,12 @@ from .mass import LinkInertial, urdf_inertial
 from .reference import Reference
 
 CHANGE_KINDS = (
-    "repaired", "estimated", "decimated", "hull", "decomposed", "cached", "primitive", "warning"
+    "repaired", "estimated", "decimated", "hull", "decomposed", "cached", "primitive",
+    "excluded", "warning",
 )
-"""Note kinds that say the model differs from the description (``info`` notes do not)."""
+"""Note kinds that say the model differs from the description (``info`` notes do not);
+``excluded``: a pair of bodies the conversion does not collide, with the depth that
+removes at home."""
 
 _LINK = re.compile(r"link '([^']*)'")
 

@@ -18,8 +18,11 @@ the inertia and passive-energy checks: what they flag can be the description's o
     detection reports at home (so neither excluded nor parent-child filtered)
     deeper than ``penetration_m``, each attributed: ``description`` when the
     two links' source shapes overlap by that much too at the same pose (the
-    reference's frames), else ``conversion`` (a hull filling a cavity, a shape
-    moved). Only overlaps the conversion added fail the check; the
+    reference's frames; :func:`~urdf2mjcf.solids.overlap_depth`: the deepest
+    sampled point inside the other, or how far they must move apart along the
+    contact's normal, whichever is larger), else ``conversion`` (a hull filling a
+    cavity, a shape moved). The contacts pass excludes the conversion's by the
+    same measure. Only overlaps the conversion added fail the check; the
     description's own are listed.
 ``home_in_limits``
     The home pose (``d_home``, else the keyframe ``home``, else ``qpos0``)
@@ -44,25 +47,23 @@ from __future__ import annotations
 import copy
 import logging
 from concurrent.futures import Future
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..mesh_distance import MeshDistance
-from . import stored
-from .collision import (
-    SEED,
+from ..mesh_distance import SEED
+from ..solids import (
+    OVERLAP_SAMPLES,
+    PENETRATION_M,
+    Hull,
+    Placed,
     Primitive,
-    _largest,
-    _sample_triangles,
-    _sample_union,
-    colliding_geoms,
-    geom_links,
-    source_elements,
-    source_shape,
+    geom_solid,
+    overlap_depth,
 )
+from . import stored
+from .collision import colliding_geoms, geom_links, source_elements, source_shape, zero_size
 
 if TYPE_CHECKING:
     import mujoco
@@ -74,9 +75,6 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 INERTIA_FACTOR = 10.0
-PENETRATION_M = 0.01
-"""Deeper than this at home is flagged: soft contacts settle within millimetres,
-and a hull bridging a joint's clearance reaches a few millimetres on real arms."""
 ENERGY_GROWTH = 0.01
 """Allowed growth over a passive second, as a fraction of mass x gravity x extent."""
 ENERGY_FLOOR_J = 1e-3
@@ -86,8 +84,6 @@ the largest; the declared moment about it must be this far off to call the axes
 swapped. (2 flags the misaligned but plausible identified inertias of Panda's
 links 1-3 and hand; 4 still flags talos's rgbd_link, 15x about the wrong axis.)"""
 LIMIT_TOLERANCE = 1e-9
-OVERLAP_SAMPLES = 500
-"""Surface points per link when measuring how deep two source shapes overlap."""
 
 
 def _check(ok: bool, detail: str, **figures: Any) -> dict[str, Any]:
@@ -357,8 +353,15 @@ def check_collision_matrix(m: mujoco.MjModel, ref: Reference) -> dict[str, Any]:
     if floor:
         detail = f"{len(floor)} of {len(robot)} colliding geoms can touch a default floor"
         return _check(True, detail, **figures)
-    if not any(link.collisions for link in ref.urdf.robot.links):
+    elements = [el for link in ref.urdf.robot.links for el in link.collisions]
+    if not elements:
         detail = "the description has no collision geometry, nor has the model"
+        return _check(True, detail, **figures)
+    if all(zero_size(el.geometry) is not None for el in elements):
+        detail = (
+            "the description's only collision shapes have zero size (its flaw: MuJoCo needs "
+            "size > 0), and the model has none"
+        )
         return _check(True, detail, **figures)
     return _check(False, "no geom can touch a floor of contype=1 conaffinity=1", **figures)
 
@@ -374,74 +377,46 @@ def _geom_label(m: mujoco.MjModel, g: int) -> str:
     return f"{body} geom #{k}"
 
 
-@dataclass
-class _Placed:
-    """A link's source collision shape placed in the root frame, with what measuring
-    depths into it needs (built once per link: several pairs share a link)."""
+def _signature(solid: Primitive | Hull) -> list[Any]:
+    """A placed geom as a cache key's part: a hull by its points' hash, a primitive whole."""
+    import hashlib
 
-    prims: list[Primitive]
-    meshes: list[Any]
-    distances: list[MeshDistance] = field(default_factory=list)
-
-    @classmethod
-    def of(cls, ref: Reference, link: Any, pose: np.ndarray) -> _Placed:
-        src = source_shape(ref, link)
-        meshes = []
-        for mesh in src.meshes:
-            mesh = mesh.copy()
-            mesh.apply_transform(pose)
-            meshes.append(mesh)
-        prims = [Primitive(p.kind, p.size, pose @ p.pose) for p in src.primitives]
-        rng = np.random.default_rng(SEED)
-        return cls(prims, meshes, [MeshDistance(x.triangles, rng) for x in meshes])
-
-    def bounds(self) -> np.ndarray | None:
-        clouds = [p.cloud() for p in self.prims] + [np.asarray(x.vertices) for x in self.meshes]
-        if not clouds:
-            return None
-        pts = np.vstack(clouds)
-        return np.array([pts.min(axis=0), pts.max(axis=0)])
-
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        pts = [_sample_union(self.prims, n, rng)] if self.prims else []
-        pts += [_sample_triangles(np.asarray(x.triangles), n, rng) for x in self.meshes]
-        return np.vstack(pts)
-
-    def depth(self, points: np.ndarray) -> float:
-        """Largest depth of ``points`` inside the shape (0 when none is inside): primitives
-        exactly; meshes by trimesh's ray containment test and the distance to their
-        surface (the largest exactly, as the collision figures' distances)."""
-        depth = 0.0
-        for p in self.prims:
-            depth = max(depth, float(np.max(-p.sdf(points), initial=0.0)))
-        for mesh, dist in zip(self.meshes, self.distances, strict=True):
-            inside = np.asarray(mesh.contains(points), bool)
-            if inside.any():
-                depth = max(depth, _largest([dist], points[inside]))
-        return depth
+    if isinstance(solid, Hull):
+        return ["hull", hashlib.sha256(np.asarray(solid.points).round(12).tobytes()).hexdigest()]
+    return [solid.kind, solid.size.round(12).tolist(), solid.pose.round(12).tolist()]
 
 
-def source_overlap(a: _Placed, b: _Placed, samples: int = OVERLAP_SAMPLES) -> float:
-    """How deep two placed source shapes overlap (m): the deepest of either surface's
-    sampled points inside the other shape. 0 when their bounding boxes are apart."""
-    ba, bb = a.bounds(), b.bounds()
-    if ba is None or bb is None or (ba[0] > bb[1]).any() or (bb[0] > ba[1]).any():
-        return 0.0
-    rng = np.random.default_rng(SEED)
-    return max(b.depth(a.sample(samples, rng)), a.depth(b.sample(samples, rng)))
+def _root_frame(ref: Reference, m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+    """4x4 world <- the description's root link, where ``d`` has it (the frame the
+    reference's link frames are given in)."""
+    import mujoco
+
+    frame = np.eye(4)
+    body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, str(ref.urdf.base_link))
+    if body > 0:
+        frame[:3, :3], frame[:3, 3] = np.asarray(d.xmat[body]).reshape(3, 3), d.xpos[body]
+    return frame
 
 
-def _overlap_key(ref: Reference, links: tuple[Any, Any], poses: tuple[Any, Any]) -> str | None:
-    """The cache key of :func:`source_overlap` of two links' source shapes at these
-    poses (None when a mesh file cannot be read)."""
+def _overlap_key(
+    ref: Reference,
+    links: tuple[Any, Any],
+    poses: tuple[Any, Any],
+    along: tuple[np.ndarray, float, list[Any] | None],
+) -> str | None:
+    """The cache key of :func:`~urdf2mjcf.solids.overlap_depth` of two links' source shapes
+    at these poses, along a contact's normal up to its depth within its two geoms
+    (:func:`_signature`; None when a mesh file cannot be read)."""
     parts = []
     for link, pose in zip(links, poses, strict=True):
         elements = source_elements(ref, link)
         if elements is None:
             return None
         parts.append([elements, np.asarray(pose, float).round(12).tolist()])
-    payload = {"kind": "certificate-overlap", "format": 1, "samples": OVERLAP_SAMPLES, "seed": SEED}
-    return stored.key({**payload, "links": parts})
+    payload = {"kind": "certificate-overlap", "format": 3, "samples": OVERLAP_SAMPLES, "seed": SEED}
+    normal, limit, geoms = along
+    separation = [np.asarray(normal, float).round(9).tolist(), round(float(limit), 9), geoms]
+    return stored.key({**payload, "links": parts, "along": separation})
 
 
 def check_interpenetration(
@@ -455,6 +430,7 @@ def check_interpenetration(
 
     ground = (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD)
     deepest: dict[tuple[int, int], float] = {}
+    normals: dict[tuple[int, int], np.ndarray] = {}  # of the deepest, from the first to the second
     for i in range(d.ncon):
         c = d.contact[i]
         g1, g2 = sorted((int(c.geom1), int(c.geom2)))
@@ -465,10 +441,13 @@ def check_interpenetration(
         depth = -float(c.dist)
         if depth > deepest.get((g1, g2), -np.inf):
             deepest[(g1, g2)] = depth
+            normal = np.array(c.frame[:3], dtype=np.float64)
+            normals[(g1, g2)] = normal if g1 == int(c.geom1) else -normal
     deep = {k: v for k, v in deepest.items() if v > penetration}
     owner = geom_links(ref, m, sorted({g for pair in deep for g in pair}))
     links = {link.name: link for link in ref.urdf.robot.links}
     frames: dict[str, np.ndarray] | None = None
+    root: np.ndarray | None = None
     placed: dict[str, Any] = {}
     pairs: list[dict[str, Any]] = []
     failures: list[str] = []
@@ -478,16 +457,29 @@ def check_interpenetration(
         if l1 in links and l2 in links and l1 != l2:
             if frames is None:
                 frames = ref.frames(home_cfg(ref, m, d))
-            key = _overlap_key(ref, (links[l1], links[l2]), (frames[l1], frames[l2]))
+            along = normals[(g1, g2)]
+            if root is None:
+                root = _root_frame(ref, m, d)
+            near_a, near_b = geom_solid(m, d, g1, root), geom_solid(m, d, g2, root)
+            near = (near_a, near_b) if near_a is not None and near_b is not None else None
+            key = _overlap_key(
+                ref,
+                (links[l1], links[l2]),
+                (frames[l1], frames[l2]),
+                (along, depth, None if near is None else [_signature(x) for x in near]),
+            )
             kept = stored.load(cache_root, key) if cache_root and key else None
             if kept is not None and stored.is_number(kept, low=0.0):
                 src_depth = float(kept)
             else:
                 for name in (l1, l2):
                     if name not in placed:
-                        placed[name] = _Placed.of(ref, links[name], frames[name])
+                        src = source_shape(ref, links[name])
+                        placed[name] = Placed.of(src.primitives, src.meshes, frames[name])
                 try:
-                    src_depth = source_overlap(placed[l1], placed[l2])
+                    src_depth = overlap_depth(
+                        placed[l1], placed[l2], along=along, limit=depth, near=near
+                    )
                 except Exception:  # a mesh trimesh cannot test: not compared, said so
                     log.info("source overlap of %s / %s not measured", l1, l2, exc_info=True)
                 if cache_root and key and src_depth is not None:

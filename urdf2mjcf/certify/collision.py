@@ -30,8 +30,10 @@ Figures (per link):
 ``volume_ratio``
     The volume the model's collision geoms enclose (their union, by manifold3d
     when there are several) over the volume the source encloses (its union
-    likewise); None, with a ``reason``, when a source mesh is not watertight
-    (its volume is undefined).
+    likewise, each mesh's closed parts taken outward: a part wound inside out
+    encloses what it encloses, see :func:`~urdf2mjcf.mesh_distance.enclosed_volume`);
+    None, with a ``reason``, when a source mesh is not watertight (its volume is
+    undefined).
 ``size_mm``, ``tolerance_mm``
     The source's bounding-box diagonal, and the distance tolerance of the link:
     the larger of ``hausdorff_mm`` and ``hausdorff_rel`` x ``size_mm``.
@@ -57,7 +59,19 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..mesh_distance import MeshDistance
+from ..mesh_distance import (
+    HAUSDORFF_MM,
+    HAUSDORFF_REL,
+    SAMPLES,
+    SEED,
+    VOLUME_RATIO,
+    MeshDistance,
+    sample_triangles,
+    solid_parts,
+    to_manifold,
+    union_volume,
+)
+from ..solids import Hull, Primitive, SourcePart, largest_distance, sample_union
 from . import stored
 
 if TYPE_CHECKING:
@@ -68,195 +82,12 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-HAUSDORFF_MM = 10.0
-"""Distance tolerance floor (mm), both directions: small links' hulls bridge recesses
-of a few millimetres."""
-HAUSDORFF_REL = 0.25
-"""Distance tolerance as a fraction of the link's size (source bounding-box diagonal).
-The conversion's hulls stick out by at most 0.18 of it on example-robot-data
-(romeo's torso: 99 mm of 560 mm; 418 links of 26 robots measured)."""
-VOLUME_RATIO = (0.5, 5.0)
-"""Allowed (low, high) ``volume_ratio``. Hulls and decompositions enclose more than
-their mesh, never much less (1.0-3.0 measured: a thin watertight shell's hull is
-solid); half the volume is geometry lost."""
-SAMPLES = 1000
-"""Surface points per link and direction: bounds the cost on big meshes."""
-SEED = 0
-
+# HAUSDORFF_MM, HAUSDORFF_REL, VOLUME_RATIO, SAMPLES and SEED are the collision pass's
+# decomposition rule's (urdf2mjcf.mesh_distance): a hull the pass keeps passes here.
 _COLLISION_NAME = re.compile(r"^(?P<link>.*)_collision(?:_\d+)?$")
 
 
 # -- shapes ------------------------------------------------------------------
-
-
-@dataclass
-class Primitive:
-    """A box, sphere, cylinder, capsule or ellipsoid in MuJoCo's terms (half sizes)."""
-
-    kind: str
-    size: np.ndarray
-    pose: np.ndarray  # 4x4, link <- shape
-
-    def local(self, points: np.ndarray) -> np.ndarray:
-        inv = np.linalg.inv(self.pose)
-        return points @ inv[:3, :3].T + inv[:3, 3]
-
-    def sdf(self, points: np.ndarray) -> np.ndarray:
-        """Signed distance (negative inside); exact but for the ellipsoid."""
-        p = self.local(points)
-        s = self.size
-        if self.kind == "sphere":
-            return np.linalg.norm(p, axis=1) - s[0]
-        if self.kind == "box":
-            q = np.abs(p) - s[:3]
-            return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
-        if self.kind == "cylinder":
-            q = np.stack([np.linalg.norm(p[:, :2], axis=1) - s[0], np.abs(p[:, 2]) - s[1]], 1)
-            return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
-        if self.kind == "capsule":
-            axis = np.zeros_like(p)
-            axis[:, 2] = np.clip(p[:, 2], -s[1], s[1])
-            return np.linalg.norm(p - axis, axis=1) - s[0]
-        if self.kind == "ellipsoid":  # scaled sphere distance: a bound, good near the surface
-            return (np.linalg.norm(p / s[:3], axis=1) - 1.0) * s[:3].min()
-        raise AssertionError(self.kind)
-
-    def area_volume(self) -> tuple[float, float]:
-        s = self.size
-        if self.kind == "sphere":
-            return 4 * np.pi * s[0] ** 2, 4 / 3 * np.pi * s[0] ** 3
-        if self.kind == "box":
-            x, y, z = 2 * s[:3]
-            return 2 * (x * y + y * z + x * z), x * y * z
-        if self.kind == "cylinder":
-            r, h = s[0], s[1]
-            return 2 * np.pi * r * 2 * h + 2 * np.pi * r**2, np.pi * r**2 * 2 * h
-        if self.kind == "capsule":
-            r, h = s[0], s[1]
-            return 4 * np.pi * r * h + 4 * np.pi * r**2, np.pi * r**2 * 2 * h + 4 / 3 * np.pi * r**3
-        a, b, c = s[:3]  # ellipsoid: Knud Thomsen's area formula
-        p = 1.6075
-        area = 4 * np.pi * (((a * b) ** p + (a * c) ** p + (b * c) ** p) / 3) ** (1 / p)
-        return area, 4 / 3 * np.pi * a * b * c
-
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        """``n`` points uniform by area on the exact surface (the ellipsoid's: nearly)."""
-        s = self.size
-        if self.kind in ("sphere", "ellipsoid"):
-            u = rng.normal(size=(n, 3))
-            u /= np.linalg.norm(u, axis=1, keepdims=True)
-            p = u * (s[:3] if self.kind == "ellipsoid" else s[0])
-        elif self.kind == "box":
-            h = s[:3]
-            areas = np.array([h[1] * h[2], h[0] * h[2], h[0] * h[1]])
-            axis = rng.choice(3, size=n, p=areas / areas.sum())
-            p = rng.uniform(-1, 1, size=(n, 3)) * h
-            side = rng.choice([-1.0, 1.0], size=n)
-            p[np.arange(n), axis] = side * h[axis]
-        else:  # cylinder, capsule: side or ends
-            r, h = s[0], s[1]
-            cap = 2 * np.pi * r**2 if self.kind == "cylinder" else 4 * np.pi * r**2
-            side_area = 4 * np.pi * r * h
-            on_side = rng.uniform(size=n) < side_area / (side_area + cap)
-            p = np.empty((n, 3))
-            t = rng.uniform(0, 2 * np.pi, size=n)
-            p[:, 0], p[:, 1] = r * np.cos(t), r * np.sin(t)
-            p[:, 2] = rng.uniform(-h, h, size=n)
-            ends = ~on_side
-            k = int(ends.sum())
-            sign = rng.choice([-1.0, 1.0], size=k)
-            if self.kind == "cylinder":
-                rad = r * np.sqrt(rng.uniform(size=k))
-                t2 = rng.uniform(0, 2 * np.pi, size=k)
-                p[ends] = np.stack([rad * np.cos(t2), rad * np.sin(t2), sign * h], 1)
-            else:
-                u = rng.normal(size=(k, 3))
-                u /= np.linalg.norm(u, axis=1, keepdims=True)
-                u[:, 2] = np.abs(u[:, 2]) * sign
-                p[ends] = u * r + np.outer(sign, [0, 0, h])
-        return p @ self.pose[:3, :3].T + self.pose[:3, 3]
-
-    def cloud(self) -> np.ndarray:
-        """Points whose hull is the shape, within 0.2 % of its size (for unions)."""
-        import trimesh
-
-        s = self.size
-        if self.kind == "box":
-            mesh = trimesh.creation.box(extents=2 * s[:3])
-        elif self.kind in ("sphere", "ellipsoid"):
-            mesh = trimesh.creation.icosphere(subdivisions=3)
-            mesh.apply_scale(s[:3] if self.kind == "ellipsoid" else s[0])
-        elif self.kind == "cylinder":
-            mesh = trimesh.creation.cylinder(radius=s[0], height=2 * s[1], sections=48)
-        else:
-            mesh = trimesh.creation.capsule(height=2 * s[1], radius=s[0], count=[24, 24])
-        v = np.asarray(mesh.vertices)
-        return v @ self.pose[:3, :3].T + self.pose[:3, 3]
-
-
-@dataclass
-class Hull:
-    """A convex polytope (a mesh geom as MuJoCo collides with it), in the link frame."""
-
-    points: np.ndarray
-    faces: np.ndarray = field(init=False)
-    planes: np.ndarray = field(init=False)  # (k, 4): unit normal, offset; n.p <= d inside
-    volume: float = field(init=False)
-    area: float = field(init=False)
-
-    def __post_init__(self) -> None:
-        from scipy.spatial import ConvexHull
-
-        h = ConvexHull(self.points)
-        self.faces = h.simplices
-        # qhull splits each face into triangles: one plane per face is enough
-        planes = np.column_stack([h.equations[:, :3], -h.equations[:, 3]])
-        self.planes = np.unique(np.round(planes, 9), axis=0)
-        self.volume = float(h.volume)
-        self.area = float(h.area)
-
-    def sdf(self, points: np.ndarray) -> np.ndarray:
-        """Largest face-plane distance: exact inside, a lower bound outside."""
-        return (points @ self.planes[:, :3].T - self.planes[:, 3]).max(axis=1)
-
-    def sample(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return _sample_triangles(self.points[self.faces], n, rng)
-
-
-def _sample_triangles(tri: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    if area.sum() <= 0:
-        return tri[:, 0][:n]
-    idx = rng.choice(len(tri), size=n, p=area / area.sum())
-    u, v = rng.uniform(size=n), rng.uniform(size=n)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    t = tri[idx]
-    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
-
-
-SourcePart = Primitive | MeshDistance
-
-
-def _largest(parts: list[SourcePart], points: np.ndarray) -> float:
-    """Largest distance from ``points`` to the union of the parts' surfaces (exact
-    over the points: refined in decreasing order of an upper bound)."""
-    bounds = np.full(len(points), np.inf)
-    for part in parts:
-        d = np.abs(part.sdf(points)) if isinstance(part, Primitive) else part.upper(points)
-        bounds = np.minimum(bounds, d)
-    order = np.argsort(-bounds, kind="stable")
-    best = 0.0
-    for lo in range(0, len(order), 32):
-        idx = order[lo : lo + 32]
-        if bounds[idx[0]] <= best + 1e-9:  # nothing left can be farther
-            break
-        exact = bounds[idx].copy()
-        for part in parts:
-            if isinstance(part, MeshDistance):
-                exact = np.minimum(exact, part.exact(points[idx], exact))
-        best = max(best, float(exact.max()))
-    return best
 
 
 # -- the source ---------------------------------------------------------------
@@ -269,6 +100,10 @@ class SourceShape:
     primitives: list[Primitive]
     meshes: list[trimesh.Trimesh]
     problems: list[str]  # what could not be read, one phrase each
+    zero_size: list[str] = field(default_factory=list)
+    """Shapes of zero size (a sphere of radius 0), one phrase each: the description's
+    flaw, left out (they have no surface; the conversion drops them, as MuJoCo needs
+    size > 0)."""
 
     @property
     def empty(self) -> bool:
@@ -297,10 +132,14 @@ def source_shape(ref: Reference, link: Any, kind: str = "collisions") -> SourceS
     prims: list[Primitive] = []
     meshes: list[trimesh.Trimesh] = []
     problems: list[str] = []
+    zero: list[str] = []
     for el in getattr(link, kind):
         pose = np.eye(4) if el.origin is None else np.asarray(el.origin, float)
         g = el.geometry
-        if g.box is not None:
+        flaw = zero_size(g)
+        if flaw is not None:
+            zero.append(flaw)
+        elif g.box is not None:
             prims.append(Primitive("box", np.asarray(g.box.size, float) / 2, pose))
         elif g.sphere is not None:
             prims.append(Primitive("sphere", np.array([g.sphere.radius], float), pose))
@@ -318,7 +157,24 @@ def source_shape(ref: Reference, link: Any, kind: str = "collisions") -> SourceS
                 mesh.apply_transform(np.diag([*scale, 1.0]))
             mesh.apply_transform(pose)
             meshes.append(mesh)
-    return SourceShape(prims, meshes, problems)
+    return SourceShape(prims, meshes, problems, zero)
+
+
+def zero_size(g: Any) -> str | None:
+    """``sphere of radius 0`` for a shape of zero size (yourdfpy's geometry), else None."""
+    if g.box is not None and 0.0 in [float(x) for x in g.box.size]:
+        return f"box of size {' '.join(f'{float(x):g}' for x in g.box.size)}"
+    if g.sphere is not None and float(g.sphere.radius) == 0.0:
+        return "sphere of radius 0"
+    if g.cylinder is not None and 0.0 in (float(g.cylinder.radius), float(g.cylinder.length)):
+        return (
+            f"cylinder of radius {float(g.cylinder.radius):g}, length {float(g.cylinder.length):g}"
+        )
+    if g.mesh is not None and g.mesh.scale is not None:
+        scale = np.broadcast_to(np.asarray(g.mesh.scale, float), 3)
+        if 0.0 in scale:
+            return f"mesh '{g.mesh.filename}' scaled by {' '.join(f'{x:g}' for x in scale)}"
+    return None
 
 
 # -- the model ----------------------------------------------------------------
@@ -443,17 +299,6 @@ def model_shapes(
     return out
 
 
-def _sample_union(
-    shapes: list[Primitive] | list[Primitive | Hull], n: int, rng: np.random.Generator
-) -> np.ndarray:
-    areas = np.array([s.area_volume()[0] if isinstance(s, Primitive) else s.area for s in shapes])
-    if not areas.sum() > 0:
-        raise ValueError("collision shapes without surface")
-    counts = np.floor(n * areas / areas.sum()).astype(int)
-    counts[np.argmax(areas)] += n - counts.sum()
-    return np.vstack([s.sample(int(c), rng) for s, c in zip(shapes, counts, strict=True) if c])
-
-
 def _union_volume(clouds: list[np.ndarray]) -> float:
     """Volume of the union of convex hulls of point clouds (manifold3d)."""
     import manifold3d
@@ -470,28 +315,28 @@ def _model_volume(shapes: list[Primitive | Hull]) -> float:
 
 
 def _source_volume(src: SourceShape) -> tuple[float | None, str | None]:
-    """(volume, None) or (None, why not)."""
-    leaky = [i for i, mesh in enumerate(src.meshes) if not mesh.is_watertight]
-    if leaky:
-        return None, "the source mesh is not watertight: its volume is undefined"
-    if len(src.primitives) + len(src.meshes) == 1:
+    """(volume, None) or (None, why not). Each mesh's volume is what it encloses, its
+    closed parts each taken outward (:func:`~urdf2mjcf.mesh_distance.solid_parts`): a
+    part wound inside out does not cancel another's volume."""
+    meshes = []
+    for mesh in src.meshes:
+        parts = solid_parts(mesh)
+        if parts is None:
+            return None, "the source mesh is not watertight: its volume is undefined"
+        meshes.extend(parts)
+    if len(src.primitives) + len(meshes) == 1:
         if src.primitives:
             return float(src.primitives[0].area_volume()[1]), None
-        return float(abs(src.meshes[0].volume)), None
+        return float(meshes[0].volume), None
     import manifold3d
 
-    parts = [manifold3d.Manifold.hull_points(p.cloud()) for p in src.primitives]
-    for mesh in src.meshes:
-        man = manifold3d.Manifold(
-            manifold3d.Mesh(
-                vert_properties=np.asarray(mesh.vertices, np.float32),
-                tri_verts=np.asarray(mesh.faces, np.uint32),
-            )
-        )
-        if man.status() != manifold3d.Error.NoError or man.is_empty():
+    solids = [manifold3d.Manifold.hull_points(p.cloud()) for p in src.primitives]
+    for part in meshes:
+        solid = to_manifold(part)
+        if solid is None:
             return None, "the source meshes do not form a closed solid: volume undefined"
-        parts.append(man)
-    return float(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add).volume()), None
+        solids.append(solid)
+    return union_volume(solids), None
 
 
 def source_size(src: SourceShape) -> float:
@@ -510,13 +355,13 @@ def measure_link(
     rng = np.random.default_rng(SEED)
     meshes = [MeshDistance(x.triangles, rng) for x in src.meshes]
     parts: list[SourcePart] = [*src.primitives, *meshes]
-    model_points = _sample_union(shapes, samples, rng)
-    hausdorff = _largest(parts, model_points)
+    model_points = sample_union(shapes, samples, rng)
+    hausdorff = largest_distance(parts, model_points)
     src_shapes: list[Primitive | Hull] = list(src.primitives)
-    src_points = [_sample_union(src_shapes, samples, rng)] if src_shapes else []
+    src_points = [sample_union(src_shapes, samples, rng)] if src_shapes else []
     for mesh in src.meshes:
         n = max(1, samples // max(1, len(src.meshes) + len(src_shapes)))
-        src_points.append(_sample_triangles(np.asarray(mesh.triangles), n, rng))
+        src_points.append(sample_triangles(np.asarray(mesh.triangles), n, rng))
     pts = np.vstack(src_points)
     outside = np.min([np.maximum(s.sdf(pts), 0.0) for s in shapes], axis=0)
     volume, reason = _source_volume(src)
@@ -532,7 +377,7 @@ def measure_link(
     return out
 
 
-FIGURES_FORMAT = 2
+FIGURES_FORMAT = 3
 """Bump when what :func:`measure_link` computes changes (the cached figures go stale)."""
 
 
@@ -657,6 +502,7 @@ def collision_section(
             by_link.setdefault(owner[g], []).append(g)
     links: dict[str, dict[str, Any]] = {}
     failures: list[str] = []
+    warnings: list[str] = []
     for link in ref.urdf.robot.links:
         name = link.name
         mine = by_link.get(name, [])
@@ -680,8 +526,22 @@ def collision_section(
                 _judge(name, entry, hausdorff_mm, hausdorff_rel, volume_ratio, failures)
                 continue
         src = source_shape(ref, link)
+        if src.zero_size:
+            entry["zero_size"] = list(src.zero_size)
         if src.problems:
             entry["reason"] = "source not read: " + "; ".join(src.problems)
+        if src.empty and not mine and src.zero_size:
+            # the description's own flaw: said as a warning, not the conversion's failure
+            what = "; ".join(src.zero_size)
+            entry["reason"] = (
+                f"the description's collision shape has zero size ({what}): the "
+                "description's flaw, which MuJoCo cannot collide (it needs size > 0)"
+            )
+            warnings.append(
+                f"collision {name}: no colliding geom because the description's collision "
+                f"shape has zero size ({what}): the description's flaw, not the conversion's"
+            )
+            continue
         if src.empty and not mine:
             entry.setdefault("reason", "no collision geometry")
             continue
@@ -708,7 +568,7 @@ def collision_section(
         if key is not None and cache_root is not None:
             _store_figures(cache_root, key, figures)
         _judge(name, entry, hausdorff_mm, hausdorff_rel, volume_ratio, failures)
-    return {"links": links, "failures": failures}
+    return {"links": links, "failures": failures, "warnings": warnings}
 
 
 def _judge(

@@ -103,6 +103,9 @@ def _convert_options(
         "cache_dir": cache_dir,
         "progress": progress,
         "overwrite": True,
+        # Our facility descriptions are written for MuJoCo: a door closes on its frame,
+        # a carriage rides its rail. Their contacts stay as described (no exclusion).
+        "keep_contacts": True,
     }
     if recipe.collision.get("default") is not None:
         options["collision_shape"] = recipe.collision["default"]

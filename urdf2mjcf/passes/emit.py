@@ -635,12 +635,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
     entries: list = []
     _body_elements(worldbody, tree.children, model, entries, notes)
 
-    # MuJoCo filters parent-child contacts except with the world body.
-    if any(g.role == "collision" for g in tree.geoms):
-        contact = etree.SubElement(mj, "contact")
-        for child in tree.children:
-            if child.joint is not None:
-                set_attrs(etree.SubElement(contact, "exclude"), body1=WORLD, body2=child.name)
+    # The world link's geoms against its children: the contacts pass's (passes/contacts.py)
 
     mimics = []
     for j in robot.joints:

@@ -1,4 +1,4 @@
-"""The extension pass, the last: the URDF's ``<mujoco>`` elements applied to the emitted MJCF.
+"""The extension pass: the URDF's ``<mujoco>`` elements applied to the emitted MJCF.
 
 A ``<robot>`` may carry top-level ``<mujoco>`` elements for what URDF cannot
 say (see ``docs/extension.md``). They are applied in document order, each

@@ -19,6 +19,7 @@ A YAML mapping with five optional sections::
     collision:                 # what collision meshes become (read by the collision pass)
       default: auto            # decompose, hull, primitive or auto, for every link
       links: {forearm: primitive}   # exact link names
+      contacts: keep           # keep (no exclusion) or resolve (the contacts pass)
 
 
 Keys of a ``joints`` entry or a class:
@@ -60,7 +61,7 @@ import yaml
 
 from ... import schema, untrusted
 from ...errors import InputError
-from ...ir import COLLISION_SHAPES
+from ...ir import COLLISION_SHAPES, CONTACTS
 
 ACTUATOR_TYPES = ("position", "velocity", "motor", "none")
 _TYPE_ALIASES = {"effort": "motor"}
@@ -125,6 +126,8 @@ class ActuatorFile:
     """``collision: default``: the collision shape of every link (None: not said)."""
     collision_links: Mapping[str, str] = field(default_factory=dict)
     """``collision: links``: link name -> collision shape."""
+    collision_contacts: str | None = None
+    """``collision: contacts``: ``keep`` or ``resolve`` (:data:`CONTACTS`; None: not said)."""
 
 
 def load(path: Path) -> ActuatorFile:
@@ -182,15 +185,20 @@ def parse(text: str, path: Path) -> ActuatorFile:
         joints.append((str(pattern), spec))
     gravcomp = r.gravcomp(top.get("gravcomp", False))
     collision = r.mapping(top.get("collision", {}), "collision")
-    r.only(collision, ("default", "links"), "collision")
+    r.only(collision, ("default", "links", "contacts"), "collision")
     default = collision.get("default")
     shape_default = r.shape(default, "collision: default") if default is not None else None
     shape_links = {
         name: r.shape(value, f"collision: links: {name}")
         for name, value in r.mapping(collision.get("links", {}), "collision: links").items()
     }
+    contacts = collision.get("contacts")
+    if contacts is not None and contacts not in CONTACTS:
+        raise r.fail(
+            f"unknown value {_show(contacts)}; valid: {', '.join(CONTACTS)}", "collision: contacts"
+        )
     return ActuatorFile(
-        path, defaults, classes, tuple(joints), gravcomp, shape_default, shape_links
+        path, defaults, classes, tuple(joints), gravcomp, shape_default, shape_links, contacts
     )
 
 

@@ -1,10 +1,12 @@
 """Collision pass: URDF collision elements -> MuJoCo collision geoms.
 
 Primitives stay primitives. A mesh whose convex hull fits it closely (hull gap
-at most :attr:`CollisionConfig.max_hull_gap`, see :mod:`.convexity`)
-becomes that hull; a clearly concave one is split by CoACD into convex parts,
-one geom each, all placed at the element's origin like the mesh itself. A flat
-mesh (no volume) becomes a thin box, which MuJoCo can collide with.
+at most :attr:`CollisionConfig.max_hull_gap`, see :mod:`.convexity`, and a hull
+the certificate's own figures pass: :class:`~.convexity.HullFigures`) becomes
+that hull; any other is split by CoACD into convex parts, one geom each, all
+placed at the element's origin like the mesh itself (a hollow one, a tube or an
+open shell, cut finer: :attr:`CollisionConfig.coacd_hollow`). A flat mesh (no
+volume) becomes a thin box, which MuJoCo can collide with.
 
 That is the ``decompose`` collision shape, the default. The others, chosen for
 the whole robot (:attr:`CollisionConfig.shape`) or per link:
@@ -53,6 +55,7 @@ from ...errors import InputError, MeshError, URDFError
 from ...geometry import primitive_geom
 from ...ir import (
     COLLISION_SHAPES,
+    CONTACTS,
     Collision,
     CollisionShape,
     Geom,
@@ -65,6 +68,7 @@ from ...ir import (
     Robot,
     Visual,
 )
+from ...mesh_distance import SAMPLES, SEED
 from ...transforms import pose_matrix, quat_from_rpy, split_transform, transform, vec3
 from ...untrusted import excerpt
 from ..actuators import config as actuator_file
@@ -73,10 +77,12 @@ from .convexity import (
     CANDIDATES,
     HULL_SAMPLES,
     MESH_SAMPLES,
+    HullFigures,
     HullFit,
     as_trimesh,
     convex_hull,
     flat_box,
+    hull_figures,
     hull_fit,
 )
 from .decompositions import DecompositionCache, array_digest, cache_key, default_cache_dir
@@ -135,6 +141,12 @@ class CollisionConfig:
     L-shaped links) and keeps ordinary links as hulls; a U bracket with mesh /
     hull volume 0.625 measures 0.023."""
     coacd: CoacdParams = CoacdParams()
+    coacd_hollow: CoacdParams = CoacdParams(threshold=0.05, preprocess_mode="off")
+    """For a closed mesh whose hull encloses more than the certificate's largest volume
+    ratio (a tube, an open shell: :meth:`~.convexity.HullFigures.hollow`). The default
+    remesh fills walls thinner than its voxels, which leaves a tube's parts as full
+    as its hull (stretch's telescoping arm: 8.3 x the tube's volume in 4 parts); the
+    mesh is closed, so it is cut as it is, to a finer concavity (12 parts, 2.8 x)."""
     cache_dir: Path | None = None
     """None: ``$URDF2MJCF_CACHE``, else ``$XDG_CACHE_HOME/urdf2mjcf``, else
     ``~/.cache/urdf2mjcf``."""
@@ -196,11 +208,14 @@ class _Job:
     stem: str
     name: str
     """File name, for progress reports."""
-    gap: float
+    why: str
+    """Why the hull was not kept: ``hull gap 0.035``, or the certificate's figure it fails."""
     hull: MeshData
     """Fallback when CoACD fails."""
     vertices: np.ndarray
     faces: np.ndarray
+    params: CoacdParams = CoacdParams()
+    """CoACD's parameters for this mesh."""
 
 
 def run(model: Model, cfg: CollisionConfig) -> Model:
@@ -313,8 +328,8 @@ def _extension_shapes(robot: Robot) -> dict[str, CollisionShape]:
         if ext.tag != "mujoco":
             continue
         for el in etree.fromstring(ext.xml.strip(), parser):
-            if el.tag != "collision":
-                continue
+            if el.tag != "collision" or "contacts" in el.attrib:
+                continue  # <collision contacts=...>: extension_contacts reads it
             link, shape = el.get("link"), el.get("shape")
             where = f"mujoco collision link='{excerpt(link or '', 60)}'"
             if set(el.attrib) != {"link", "shape"} or len(el):
@@ -333,6 +348,34 @@ def _extension_shapes(robot: Robot) -> dict[str, CollisionShape]:
             if link not in robot.link_map:
                 raise URDFError("no such link in the robot", file=robot.source, element=where)
             out[link] = shape  # type: ignore[assignment]
+    return out
+
+
+def extension_contacts(robot: Robot) -> str | None:
+    """``<mujoco><collision contacts="keep|resolve"/></mujoco>``, the last one in document
+    order (None: not said). The extension pass skips these elements too."""
+    out: str | None = None
+    parser = etree.XMLParser(remove_blank_text=True, remove_comments=True, remove_pis=True)
+    for ext in robot.extensions:
+        if ext.tag != "mujoco":
+            continue
+        for el in etree.fromstring(ext.xml.strip(), parser):
+            if el.tag != "collision" or "contacts" not in el.attrib:
+                continue
+            value = el.get("contacts") or ""
+            where = f"mujoco collision contacts='{excerpt(value, 20)}'"
+            if set(el.attrib) != {"contacts"} or len(el):
+                raise URDFError(
+                    'takes either link="LINK" shape="SHAPE" or contacts="keep|resolve" alone, '
+                    "and no content",
+                    file=robot.source,
+                    element=where,
+                )
+            if value not in CONTACTS:
+                raise URDFError(
+                    f"unknown value; valid: {', '.join(CONTACTS)}", file=robot.source, element=where
+                )
+            out = value
     return out
 
 
@@ -447,9 +490,7 @@ def _open_cache(cfg: CollisionConfig) -> DecompositionCache | None:
 
 def _job_plan(job: _Job, parts: list[MeshData] | None, failure: str, notes: list[Note]) -> _Plan:
     if parts is not None:
-        notes.append(
-            Note("decomposed", job.label, f"{len(parts)} convex parts (hull gap {job.gap:.3f})")
-        )
+        notes.append(Note("decomposed", job.label, f"{len(parts)} convex parts ({job.why})"))
         return _Plan("parts", job.label, job.stem, pieces=tuple(parts))
     notes.append(
         Note("warning", job.label, f"convex decomposition {failure}; using the convex hull")
@@ -457,8 +498,13 @@ def _job_plan(job: _Job, parts: list[MeshData] | None, failure: str, notes: list
     return _Plan("hull", job.label, job.stem, pieces=(job.hull,))
 
 
-GAP_PARAMS = {"hull_samples": HULL_SAMPLES, "mesh_samples": MESH_SAMPLES, "candidates": CANDIDATES}
-"""What a cached hull gap depends on besides the mesh."""
+GAP_PARAMS = {
+    "hull_samples": HULL_SAMPLES,
+    "mesh_samples": MESH_SAMPLES,
+    "candidates": CANDIDATES,
+    "hull_figures": f"samples {SAMPLES}, seed {SEED}, enclosed volume",
+}
+"""What a cached hull gap and the hull's figures stored with it depend on besides the mesh."""
 
 
 def _classify(
@@ -494,11 +540,19 @@ def _classify(
     if shape in ("hull", "primitive"):
         return _hull_plan(loaded, label, stem, hull_key, shape, cache, notes)
     cached_gap = cache.load_gap(gap_key) if cache is not None else None
-    if cache is not None and cached_gap is not None and cached_gap <= cfg.max_hull_gap:
+    cached_figures = (
+        cache.load_hull_figures(gap_key) if cache is not None and cached_gap is not None else None
+    )
+    if (
+        cached_gap is not None
+        and cached_gap <= cfg.max_hull_gap
+        and cached_figures is not None
+        and cached_figures.failure() is None
+    ):
         # A warm run's usual case: no trimesh, no qhull (the stored hull is bit-exact).
-        stored = cache.load_hull(hull_key)
+        stored = cache.load_hull(hull_key) if cache is not None else None
         if stored is not None:
-            return _hull(label, stem, stored, f"hull gap {cached_gap:.3f}", notes)
+            return _hull(label, stem, stored, _hull_why(cached_gap, cached_figures), notes)
     mesh = as_trimesh(loaded.merged)
     if len(mesh.faces) == 0:
         notes.append(Note("warning", label, "mesh has no triangles; no collision geom"))
@@ -509,22 +563,36 @@ def _classify(
         fit = hull_fit(mesh)
         if fit.hull is None:
             return _flat(label, stem, mesh.vertices, notes)
-        if cache is not None:
-            cache.store_gap(gap_key, fit.gap)
-    if fit.gap <= cfg.max_hull_gap:
-        why = f"hull gap {fit.gap:.3f}"
-        return _new_hull(label, stem, mesh.vertices, fit.hull, hull_key, cache, why, notes)
+    hull = fit.hull if fit.hull is not None else convex_hull(mesh.vertices)
+    if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
+        return _flat(label, stem, mesh.vertices, notes)
+    # The hull is kept when the gap passes and the certificate's figures would too.
+    figures = cached_figures if cached_figures is not None else hull_figures(mesh, hull)
+    if cache is not None and cached_figures is None:
+        cache.store_gap(gap_key, fit.gap, figures)
+    why = f"hull gap {fit.gap:.3f}" if fit.gap > cfg.max_hull_gap else figures.failure()
+    if why is None:
+        hull_why = _hull_why(fit.gap, figures)
+        return _new_hull(label, stem, mesh.vertices, hull, hull_key, cache, hull_why, notes)
+    if figures.hollow and fit.gap > cfg.max_hull_gap:
+        why += f", hull volume {figures.volume_ratio:.3g} x the mesh's: a hollow part"
     vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    key = cache_key(loaded.sha256, array_digest(vertices, faces), asdict(cfg.coacd))
+    params = cfg.coacd_hollow if figures.hollow else cfg.coacd
+    key = cache_key(loaded.sha256, array_digest(vertices, faces), asdict(params))
     parts = cache.load(key) if cache is not None else None
     if parts is not None:
         notes.append(Note("cached", label, f"{len(parts)} convex parts from the cache"))
         return _Plan("parts", label, stem, pieces=tuple(parts))
-    hull = fit.hull if fit.hull is not None else convex_hull(mesh.vertices)
-    if hull is None:  # a stored gap for what is flat after all (a corrupt entry)
-        return _flat(label, stem, mesh.vertices, notes)
-    return _Job(key, label, stem, name, fit.gap, hull, vertices, faces)
+    return _Job(key, label, stem, name, why, hull, vertices, faces, params)
+
+
+def _hull_why(gap: float, figures: HullFigures) -> str:
+    """What a kept hull measured: ``hull gap 0.012, Hausdorff 3.1 mm, volume ratio 1.80``."""
+    why = f"hull gap {gap:.3f}, Hausdorff {figures.hausdorff_m * 1e3:.1f} mm"
+    if figures.volume_ratio is not None:
+        why += f", volume ratio {figures.volume_ratio:.2f}"
+    return why
 
 
 def fit_message(chosen: primitives.Candidate) -> str:
@@ -669,7 +737,6 @@ def _run_jobs(
     if not jobs:
         return results  # start no worker when the cache answered everything
     _require_coacd()
-    params = asdict(cfg.coacd)
     total = len(jobs)
     workers = min(cfg.workers if cfg.workers > 0 else _available_cpus(), total)
     logger.info("decomposing %d meshes with CoACD (%d workers)", total, workers)
@@ -687,7 +754,8 @@ def _run_jobs(
         if cfg.progress is not None:
             cfg.progress(len(results), total, job.name)
 
-    decompose_all([(j.vertices, j.faces, params) for j in jobs], workers, cfg.timeout, finish)
+    tasks = [(j.vertices, j.faces, asdict(j.params)) for j in jobs]
+    decompose_all(tasks, workers, cfg.timeout, finish)
     return results
 
 

@@ -21,6 +21,14 @@ hollow bodies whole (hyq's upper leg: volume ratio 0.20, gap 0.017).
 Half of the meshes measure below 0.01 and 75% below 0.02; motor brackets,
 U-shaped forks and gripper jaws measure 0.024-0.034. The cost is about
 20-80 ms a mesh.
+
+A hull that passes the gap must also pass the certificate's own figures
+(:class:`HullFigures`, by :mod:`urdf2mjcf.mesh_distance`'s rule and
+tolerances): the hull's volume over the volume the mesh encloses, and how far
+the hull's surface sticks out of the mesh's (the one-sided Hausdorff
+distance). A thin shell passes the gap, since its hull's surface lies on the
+shell, but not the volume: the tubes of a telescoping arm measure a hull 9-40
+times their volume, which the nested tubes reach into; they are decomposed.
 """
 
 from __future__ import annotations
@@ -31,6 +39,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...ir import MeshData
+from ...mesh_distance import (
+    SAMPLES,
+    SEED,
+    VOLUME_RATIO,
+    MeshDistance,
+    distance_tolerance,
+    enclosed_volume,
+    sample_triangles,
+)
 
 if TYPE_CHECKING:
     import trimesh
@@ -53,6 +70,54 @@ class HullFit:
     """Mean hull-to-mesh surface distance / bounding-box diagonal (0 when flat)."""
     diagonal: float
     """Bounding-box diagonal of the mesh, metres."""
+
+
+@dataclass(frozen=True)
+class HullFigures:
+    """A convex hull measured against its mesh as the certificate measures a link."""
+
+    volume_ratio: float | None
+    """Hull volume / the volume the mesh encloses; None when the mesh is open."""
+    hausdorff_m: float
+    """Largest distance from the hull's surface to the mesh's, over
+    :data:`~urdf2mjcf.mesh_distance.SAMPLES` seeded points of the hull."""
+    diagonal_m: float
+    """Bounding-box diagonal of the mesh: what the distance tolerance scales with."""
+
+    @property
+    def hollow(self) -> bool:
+        """The hull encloses more than the largest volume ratio: a tube, an open shell."""
+        return self.volume_ratio is not None and self.volume_ratio > VOLUME_RATIO[1]
+
+    def failure(self) -> str | None:
+        """Why the certificate would fail this hull (None: it would pass)."""
+        limit = distance_tolerance(self.diagonal_m)
+        if self.hollow:
+            return f"hull volume {self.volume_ratio:.3g} x the mesh's: a hollow part"
+        if self.volume_ratio is not None and self.volume_ratio < VOLUME_RATIO[0]:
+            return f"hull volume {self.volume_ratio:.3g} x the mesh's"
+        if self.hausdorff_m > limit:
+            return (
+                f"hull sticks out {self.hausdorff_m * 1e3:.1f} mm from the mesh "
+                f"(tolerance {limit * 1e3:.1f} mm)"
+            )
+        return None
+
+
+def hull_figures(mesh: trimesh.Trimesh, hull: MeshData) -> HullFigures:
+    """:class:`HullFigures` of ``hull`` against ``mesh`` (deterministic: seeded)."""
+    rng = np.random.default_rng(SEED)
+    distance = MeshDistance(np.asarray(mesh.triangles, dtype=np.float64), rng)
+    points = sample_triangles(hull.vertices[hull.faces], SAMPLES, rng)
+    volume = enclosed_volume(mesh)
+    hull_volume = abs(signed_volume(hull.vertices, hull.faces))
+    ratio = hull_volume / volume if volume is not None and volume > 0 else None
+    diagonal = float(np.linalg.norm(mesh.extents)) if len(mesh.vertices) else 0.0
+    return HullFigures(
+        volume_ratio=None if ratio is None else float(ratio),
+        hausdorff_m=float(distance.largest(points)),
+        diagonal_m=diagonal,
+    )
 
 
 def as_trimesh(mesh: MeshData) -> trimesh.Trimesh:

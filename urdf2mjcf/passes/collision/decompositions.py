@@ -1,7 +1,8 @@
 """Disk cache of convex decompositions, so a second conversion decomposes nothing.
 
-It also keeps hull gaps, convex hulls and primitive-fit candidates (JSON, checked
-field by field on reading), so that a warm conversion neither measures nor fits.
+It also keeps hull gaps (each with its hull's figures, :class:`~.convexity.HullFigures`),
+convex hulls and primitive-fit candidates (JSON, checked field by field on reading), so
+that a warm conversion neither measures nor fits.
 
 One ``.npz`` file per decomposition, named by a key that hashes everything the
 result depends on: the mesh (its content hash and the exact arrays handed to
@@ -33,6 +34,7 @@ import numpy as np
 from ...cache import check_environment, default_cache_dir, make_key, read_entry, write_entry
 from ...ir import MeshData
 from ...untrusted import excerpt
+from .convexity import HullFigures
 from .primitives import Candidate, Deviation, Fit
 
 __all__ = ["DecompositionCache", "array_digest", "cache_key", "default_cache_dir"]
@@ -46,6 +48,8 @@ _SUBDIR = "coacd"
 _GAP_SUBDIR = "hull_gap"
 _HULL_SUBDIR = "hulls"
 _FIT_SUBDIR = "primitive_fits"
+
+_HULL_FIGURES = {f.name for f in dataclasses.fields(HullFigures)}
 
 _FIT_SIZES = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3}
 """Primitive type -> the number of MuJoCo half sizes it takes."""
@@ -175,12 +179,36 @@ class DecompositionCache:
         }
         write_entry(self.dir.parent / _FIT_SUBDIR, f"{key}.json", json.dumps(entry).encode())
 
-    def store_gap(self, key: str, gap: float) -> None:
-        write_entry(
-            self.dir.parent / _GAP_SUBDIR,
-            f"{key}.json",
-            json.dumps({"key": key, "gap": gap}).encode(),
-        )
+    def load_hull_figures(self, key: str) -> HullFigures | None:
+        """The hull's figures stored beside its hull gap (:meth:`store_gap`), or None
+        when absent or not three numbers (the ratio may be null: an open mesh)."""
+        raw = read_entry(self.dir.parent / _GAP_SUBDIR / f"{key}.json")
+        if raw is None:
+            return None
+        try:
+            data = json.loads(raw)
+            if not isinstance(data, dict) or data.get("key") != key:
+                return None
+            hull = data.get("hull")
+            if not isinstance(hull, dict) or set(hull) != _HULL_FIGURES:
+                return None
+            ratio = hull["volume_ratio"]
+            figures = HullFigures(
+                volume_ratio=None if ratio is None else _finite(ratio, "volume ratio"),
+                hausdorff_m=_finite(hull["hausdorff_m"], "hausdorff"),
+                diagonal_m=_finite(hull["diagonal_m"], "diagonal"),
+            )
+        except Exception:  # truncated, garbage or inconsistent: a miss, measured again
+            return None
+        values = (figures.hausdorff_m, figures.diagonal_m, figures.volume_ratio or 0.0)
+        return figures if min(values) >= 0.0 else None
+
+    def store_gap(self, key: str, gap: float, hull: HullFigures | None = None) -> None:
+        """The hull gap and, where measured, the hull's figures (one entry a mesh)."""
+        entry: dict[str, Any] = {"key": key, "gap": gap}
+        if hull is not None:
+            entry["hull"] = dataclasses.asdict(hull)
+        write_entry(self.dir.parent / _GAP_SUBDIR, f"{key}.json", json.dumps(entry).encode())
 
 
 def _finite(value: Any, what: str) -> float:

@@ -17,9 +17,10 @@ The deviation uses the collision certificate's definitions
   primitive sticks out most; exact over those points.
 * ``uncovered_m``: the largest distance by which a mesh vertex lies outside
   every fit (0 for the enclosing fits made here).
-* ``volume_ratio``: the union volume of the fits over the mesh's volume; the
-  volume of the mesh's convex hull when the mesh is not watertight (a soup has
-  no inside).
+* ``volume_ratio``: the union volume of the fits over the volume the mesh
+  encloses (as the certificate takes it:
+  :func:`~urdf2mjcf.mesh_distance.enclosed_volume`); the volume of the mesh's
+  convex hull when the mesh is not watertight (a soup has no inside).
 
 Measured on the collision meshes of example-robot-data: see :data:`TOLERANCE_MM`
 and :data:`MAX_VOLUME_RATIO`. Cost: all candidates of a 4,000-6,000-face mesh
@@ -37,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 
-from ...mesh_distance import MeshDistance
+from ...mesh_distance import MeshDistance, enclosed_volume
 from .convexity import convex_hull, signed_volume
 
 Kind = Literal["sphere", "capsule", "cylinder", "box"]
@@ -526,7 +527,7 @@ def _prepare(vertices: np.ndarray, faces: np.ndarray) -> _Mesh | None:
     area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     if not area.sum() > 0:
         return None
-    volume = abs(float(mesh.volume)) if mesh.is_watertight else 0.0
+    volume = enclosed_volume(mesh) or 0.0  # a part wound inside out cancels nothing
     if not volume > 0:
         volume = abs(signed_volume(hull.vertices, hull.faces))
     if not volume > 0:
