@@ -254,6 +254,28 @@ def test_a_floating_base_gets_no_base_exclusion(tmp_path: Path) -> None:
     assert frozenset({"base", "link1"}) not in home_contacts(tmp_path / "free" / "robot.xml")
 
 
+def test_a_free_body_beside_a_welded_floor_still_lands_on_it(tmp_path: Path) -> None:
+    """A floating joint's child is nobody's neighbour: a bag dropped beside a floor fixed
+    to the same world link keeps its contact with the floor, and rests on it."""
+    body = (
+        '<link name="world"/>'
+        + link("floor", '<box size="2 2 0.05"/>')
+        + link("bag", '<box size="0.4 0.3 0.2"/>')
+        + joint("floor_joint", "fixed", "world", "floor", "0 0 -0.025")
+        + '<joint name="bag_joint" type="floating"><parent link="world"/><child link="bag"/>'
+        '<origin xyz="0 0 0.15"/></joint>'
+    )
+    report = convert(write(tmp_path, body, "drop"), tmp_path / "out")
+    xml = tmp_path / "out" / "robot.xml"
+    assert excludes(xml) == [] and not excluded_notes(report)
+    m = mujoco.MjModel.from_xml_path(str(xml))
+    d = mujoco.MjData(m)
+    for _ in range(int(1.0 / m.opt.timestep)):
+        mujoco.mj_step(m, d)
+    bag = m.body("bag").id
+    assert d.xpos[bag][2] == pytest.approx(0.1, abs=0.005)  # on the floor's top (z = 0)
+
+
 # -- a hull reaching into a neighbour ------------------------------------------------------
 
 

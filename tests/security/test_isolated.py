@@ -47,17 +47,30 @@ def test_a_crash_is_lost_not_ours():
         isolated.call(crash, timeout=60)
 
 
-def test_a_hang_ends_at_the_time_limit_and_leaves_no_process():
+def test_a_hang_ends_at_the_time_limit_and_leaves_no_process(monkeypatch):
     def hang() -> None:
         time.sleep(3600)
 
+    forked: list[int] = []
+    fork = os.fork
+
+    def recording_fork() -> int:
+        pid = fork()
+        if pid:
+            forked.append(pid)
+        return pid
+
+    monkeypatch.setattr(os, "fork", recording_fork)
     start = time.monotonic()
     with pytest.raises(isolated.ChildLost, match="within 1 s"):
         isolated.call(hang, timeout=1)
     assert time.monotonic() - start < 10
+    (pid,) = forked
+    # killed and reaped: no such process (other tests in this worker may hold children)
     with open(f"/proc/{os.getpid()}/task/{os.getpid()}/children") as f:
-        pids = f.read().split()
-    assert pids == []  # killed and reaped
+        assert str(pid) not in f.read().split()
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)
 
 
 def test_an_allocation_past_the_cap_fails_in_the_child():

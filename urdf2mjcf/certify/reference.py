@@ -14,8 +14,9 @@ is not ours. Two readers, after xacro (the description's own language):
   (``quat_xyzw`` origins, ``<capsule>``) is read beside it from the same elements,
   with urdfdom's rules (from version 1.1 on; both ``rpy`` and ``quat_xyzw`` is
   unreadable), quaternions by trimesh's transformations. A geometry yourdfpy does
-  not know (``<plane>``, a simulator's own), or a box, sphere or cylinder of zero
-  size (no volume), is a part without a shape.
+  not know (``<plane>``, a simulator's own) is a part without a shape; a box, sphere
+  or cylinder of zero size is set aside while yourdfpy loads (it has no volume) and
+  put back as written, so the figures can say it is the description's flaw.
 
 Where both read the file their frames are compared (:meth:`Reference.agreement`):
 they disagree only by a bug of one of them, and urdfdom, the spec's reference, is
@@ -496,6 +497,20 @@ def _no_size(shape: Any) -> bool:
     return 0.0 in values
 
 
+def _sized(el: Any, yourdfpy: Any) -> Any:
+    """yourdfpy's geometry of a zero-size box, sphere or cylinder, as the file has it."""
+    if el.tag == "box":
+        size = np.array([float(v) for v in el.get("size", "").split()], float)
+        return yourdfpy.Geometry(box=yourdfpy.Box(size=size))
+    if el.tag == "sphere":
+        return yourdfpy.Geometry(sphere=yourdfpy.Sphere(radius=float(el.get("radius"))))
+    return yourdfpy.Geometry(
+        cylinder=yourdfpy.Cylinder(
+            radius=float(el.get("radius", "1")), length=float(el.get("length", "1"))
+        )
+    )
+
+
 def _complete(urdf: Any, later: list[tuple[tuple[str, ...], Any]]) -> None:
     """Put into yourdfpy's reading what :func:`_for_yourdfpy` set aside."""
     import trimesh.transformations as tra
@@ -517,6 +532,8 @@ def _complete(urdf: Any, later: list[tuple[tuple[str, ...], Any]]) -> None:
                 geometry.capsule = CapsuleShape(  # type: ignore[attr-defined]
                     float(el.get("radius")), float(el.get("length"))
                 )
+            elif _no_size(el):  # kept as read, after loading: the figures say it is the flaw
+                geometry = _sized(el, yourdfpy)
             owner.geometry = geometry
             continue
         values = [float(v) for v in el.get("quat_xyzw").split()]

@@ -80,6 +80,8 @@ class _Exclusion:
     """How deep the description's shapes overlap there (None: not measured)."""
     base: bool
     """A body welded to the world and its child."""
+    moved: int = -1
+    """The body a joint moves (a fixed base's pair): named in the note."""
 
 
 def keeps(model: Model, cfg: ContactsConfig) -> bool:
@@ -120,7 +122,8 @@ def run(
         el = etree.SubElement(contact, "exclude")
         el.set("body1", a)
         el.set("body2", b)
-        notes.append(Note("excluded", f"contact link '{a}' / link '{b}'", _message(ex, b)))
+        moved = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, ex.moved) if ex.moved >= 0 else b
+        notes.append(Note("excluded", f"contact link '{a}' / link '{b}'", _message(ex, moved)))
     return replace(result, root=root, notes=result.notes + tuple(notes))
 
 
@@ -184,10 +187,12 @@ def _exclusions(
             geoms[(g1, g2)] = (depth, normal)
     out = []
     base_pairs = _base_pairs(model, m, owner)
-    for pair in base_pairs:
+    for pair, moved in base_pairs:
         if pair not in excluded:
-            out.append(_Exclusion(pair, max(deepest.get(pair, 0.0), 0.0), None, base=True))
-    done = excluded | set(base_pairs)
+            out.append(
+                _Exclusion(pair, max(deepest.get(pair, 0.0), 0.0), None, base=True, moved=moved)
+            )
+    done = excluded | {pair for pair, _ in base_pairs}
     frames: dict[str, np.ndarray] | None = None
     placed: dict[str, Placed | None] = {}
     for pair in sorted(deepest):
@@ -221,12 +226,15 @@ def _geom_links(model: Model, m: Any) -> dict[int, str]:
     }
 
 
-def _base_pairs(model: Model, m: Any, owner: Mapping[int, str]) -> list[tuple[int, int]]:
-    """(welded, child) body pairs of a fixed base that MuJoCo could collide: a link moved
-    by a joint whose parent link is welded to the world, and each link adjacent to it
-    as MoveIt takes adjacency (its parent, and through links without collision
-    geometry what lies beyond them) that is welded to the world too; both bodies with
-    colliding geoms."""
+def _base_pairs(
+    model: Model, m: Any, owner: Mapping[int, str]
+) -> list[tuple[tuple[int, int], int]]:
+    """(welded, child) body pairs of a fixed base that MuJoCo could collide, each with
+    the body moved: a link moved by a joint whose parent link is welded to the world,
+    and each link adjacent to it as MoveIt takes adjacency (its parent, and through
+    links without collision geometry what lies beyond them) that is welded to the world
+    too; both bodies with colliding geoms. A floating joint's child is no neighbour of
+    anything: a free body falls onto the floor beside it and must meet it."""
     import mujoco
 
     robot = model.robot
@@ -252,14 +260,16 @@ def _base_pairs(model: Model, m: Any, owner: Mapping[int, str]) -> list[tuple[in
 
     out = set()
     for j in robot.joints:
-        if j.type == "fixed" or not welded(j.parent) or welded(j.child) or j.child not in body_of:
+        if j.type in ("fixed", "floating") or not welded(j.parent) or welded(j.child):
+            continue
+        if j.child not in body_of:
             continue
         child = body_of[j.child]
         for other in _adjacent(j.child, neighbours, model):
             if welded(other) and _can_collide(
                 m, geoms.get(body_of[other], []), geoms.get(child, [])
             ):
-                out.add((min(body_of[other], child), max(body_of[other], child)))
+                out.add(((min(body_of[other], child), max(body_of[other], child)), child))
     return sorted(out)
 
 
