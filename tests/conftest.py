@@ -12,6 +12,7 @@ from urdf2mjcf import headless
 headless.configure()  # before any test imports mujoco's renderer
 
 DATA = Path(__file__).parent / "data"
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -22,6 +23,16 @@ def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     cache.mkdir(parents=True, exist_ok=True)
     os.environ["URDF2MJCF_CACHE"] = str(cache)
     return cache
+
+
+@pytest.fixture(scope="session")
+def imetro_bundle(_session_cache: Path) -> Path:
+    """The default iMETRO facility (recipes/imetro.yaml, no components/), built once per
+    test run in the session cache and shared by every worker. Read-only: the runtime
+    never writes into a bundle; a test that edits one builds its own."""
+    from urdf2mjcf.envs import build as env_build
+
+    return env_build.facility_folder("imetro", root=ROOT)[0]
 
 
 @pytest.fixture(scope="session")

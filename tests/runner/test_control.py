@@ -11,8 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.control import Controller, quintic
 from urdf2mjcf.runner.load import load
 
@@ -20,10 +18,8 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def controller(tmp_path_factory) -> Controller:
-    out = tmp_path_factory.mktemp("control") / "imetro"
-    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
-    fac = load(out)
+def controller(imetro_bundle: Path) -> Controller:
+    fac = load(imetro_bundle)
     return Controller(fac, np.full(len(fac.robot.joints), 1.0))
 
 

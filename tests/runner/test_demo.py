@@ -33,10 +33,8 @@ PRE_DROP = ((-1.006, 0.811, 1.580), (0.725, 0.688, 0.032, -0.004))  # tool0: xyz
 
 
 @pytest.fixture(scope="module")
-def facility(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("demo") / "imetro"
-    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
-    return out
+def facility(imetro_bundle: Path) -> Path:
+    return imetro_bundle
 
 
 def _run(folder: Path, change=None, spec=None):

@@ -13,8 +13,6 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.cli import facility_demo_command
 from urdf2mjcf.runner.executors import ExecutorError, run_jobs
 from urdf2mjcf.runner.trials import TrialJob, run_trial, run_trials
@@ -75,10 +73,8 @@ def test_a_trial_that_raises_is_a_failed_trial_not_the_end_of_the_run(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def facility(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("executors") / "imetro"
-    build_facility(load_recipe(RECIPE), out, root=ROOT, components=False)
-    return out
+def facility(imetro_bundle: Path) -> Path:
+    return imetro_bundle
 
 
 def _decided(results: list[dict]) -> list[dict]:

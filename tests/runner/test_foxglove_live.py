@@ -359,10 +359,8 @@ def _short_demo(folder: Path, tmp_path: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def imetro(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("imetro") / "imetro"
-    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
-    return out
+def imetro(imetro_bundle: Path) -> Path:
+    return imetro_bundle
 
 
 def test_facility_demo_streams_joints_images_and_wrench(imetro: Path, tmp_path: Path) -> None:

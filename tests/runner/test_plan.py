@@ -313,14 +313,10 @@ def test_only_pairs_with_the_robot_are_computed_and_they_are_mujocos_own():
     assert 20 < hits < 180  # both kinds of state were seen
 
 
-def test_the_robot_plans_from_the_bench_seat_to_stow_in_the_default_facility(tmp_path_factory):
-    from urdf2mjcf.facility.build import build_facility
-    from urdf2mjcf.facility.recipe import load_recipe
+def test_the_robot_plans_from_the_bench_seat_to_stow_in_the_default_facility(imetro_bundle):
     from urdf2mjcf.runner.load import load
 
-    out = tmp_path_factory.mktemp("plan") / "imetro"
-    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
-    fac = load(out)
+    fac = load(imetro_bundle)
     m, d = fac.model, fac.data
     joints = [m.joint(n).id for n in fac.manifest["components"]["robot"]["roles"]["joints"]]
     adr = m.jnt_qposadr[joints]

@@ -34,10 +34,8 @@ HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
 
 
 @pytest.fixture(scope="module")
-def imetro(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("record") / "imetro"
-    build_facility(load_recipe(ROOT / "recipes" / "imetro.yaml"), out, root=ROOT, components=False)
-    return out
+def imetro(imetro_bundle: Path) -> Path:
+    return imetro_bundle
 
 
 @pytest.fixture(scope="module")
