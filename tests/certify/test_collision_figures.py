@@ -315,3 +315,39 @@ def test_zero_size_shape_is_the_descriptions_flaw_said_as_such(tmp_path: Path) -
     pad = section["links"]["pad"]  # measured against its real sphere only
     assert pad["zero_size"] == ["sphere of radius 0"]
     assert pad["volume_ratio"] == pytest.approx(1.0, abs=1e-9) and pad["ok"]
+
+
+def test_only_shapes_urdf_does_not_define_is_the_descriptions_choice(tmp_path: Path) -> None:
+    """pybullet's plane_implicit.urdf collides through a <plane>, a kind URDF does not
+    define: the conversion warns it drops it, and the certificate's floor check says the
+    model has nothing to collide because of the description's choice, not a failure."""
+    src = tmp_path / "plane.urdf"
+    src.write_text(
+        '<robot name="plane"><link name="planeLink">'
+        '<collision><geometry><plane normal="0 0 1"/></geometry></collision>'
+        f"{INERTIAL}</link></robot>"
+    )
+    report = api.convert(src, tmp_path / "robot.xml", scene=False)
+    assert any("<plane>" in n.element for n in report.warnings)
+    certificate = report.certificate
+    assert certificate.passed, certificate.failures
+    check = certificate.sections["checks"]["checks"]["collision_matrix"]
+    assert check["ok"] and "kinds URDF does not define" in check["detail"]
+
+
+def test_a_four_value_mesh_scale_is_measured_as_the_conversion_reads_it(tmp_path: Path) -> None:
+    """pybullet's racecar_differential.urdf writes scale="1 1 1 1": the conversion reads
+    the first three factors, and the certificate's figures are measured the same way
+    (they crashed on it)."""
+    trimesh.creation.box(extents=[0.2, 0.1, 0.05]).export(tmp_path / "box.stl")
+    src = tmp_path / "car.urdf"
+    src.write_text(
+        '<robot name="car"><link name="chassis"><collision><geometry>'
+        '<mesh filename="box.stl" scale="2 1 1 1"/></geometry></collision>'
+        f"{INERTIAL}</link></robot>"
+    )
+    report = api.convert(src, tmp_path / "robot.xml", scene=False)
+    certificate = report.certificate
+    assert certificate.passed, certificate.failures
+    chassis = certificate.sections["collision"]["links"]["chassis"]
+    assert chassis["volume_ratio"] == pytest.approx(1.0, abs=1e-6)

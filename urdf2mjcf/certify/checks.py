@@ -363,7 +363,20 @@ def check_collision_matrix(m: mujoco.MjModel, ref: Reference) -> dict[str, Any]:
             "size > 0), and the model has none"
         )
         return _check(True, detail, **figures)
+    if all(zero_size(el.geometry) is not None or _unknown(el.geometry) for el in elements):
+        detail = (
+            "the description's only collision shapes are of kinds URDF does not define (a "
+            "simulator's own, such as <plane> or <cdf>: the conversion warned it dropped "
+            "them) or of zero size, and the model has none: the description's choice"
+        )
+        return _check(True, detail, **figures)
     return _check(False, "no geom can touch a floor of contype=1 conaffinity=1", **figures)
+
+
+def _unknown(g: Any) -> bool:
+    """A geometry the reference has no shape for: a kind URDF does not define."""
+    kinds = ("box", "sphere", "cylinder", "mesh", "capsule")
+    return all(getattr(g, k, None) is None for k in kinds)
 
 
 def _geom_label(m: mujoco.MjModel, g: int) -> str:

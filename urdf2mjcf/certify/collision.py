@@ -153,11 +153,18 @@ def source_shape(ref: Reference, link: Any, kind: str = "collisions") -> SourceS
                 problems.append(f"{g.mesh.filename}: {' '.join(str(exc).split())[:120]}")
                 continue
             if g.mesh.scale is not None:
-                scale = np.broadcast_to(np.asarray(g.mesh.scale, float), 3)
+                scale = _scale3(g.mesh.scale)
                 mesh.apply_transform(np.diag([*scale, 1.0]))
             mesh.apply_transform(pose)
             meshes.append(mesh)
     return SourceShape(prims, meshes, problems, zero)
+
+
+def _scale3(value: Any) -> np.ndarray:
+    """A mesh scale as three factors: one value for all, else the first three (as the
+    conversion reads pybullet's ``scale="1 1 1 1"``)."""
+    scale = np.asarray(value, float).ravel()
+    return np.broadcast_to(scale, 3) if scale.size == 1 else scale[:3]
 
 
 def zero_size(g: Any) -> str | None:
@@ -171,7 +178,7 @@ def zero_size(g: Any) -> str | None:
             f"cylinder of radius {float(g.cylinder.radius):g}, length {float(g.cylinder.length):g}"
         )
     if g.mesh is not None and g.mesh.scale is not None:
-        scale = np.broadcast_to(np.asarray(g.mesh.scale, float), 3)
+        scale = np.asarray(g.mesh.scale, float).ravel()
         if 0.0 in scale:
             return f"mesh '{g.mesh.filename}' scaled by {' '.join(f'{x:g}' for x in scale)}"
     return None
