@@ -367,6 +367,10 @@ def urdf2mjcf_main() -> None:
         from .batch import batch_command
 
         run_command(batch_command, args[1:], prog_name="urdf2mjcf batch")
+    if args[:1] == ["serve"]:
+        from .ros2.command import serve_command
+
+        run_command(serve_command, args[1:], prog_name="urdf2mjcf serve")
     if args[:1] == ["verify"]:
         from .certify.command import verify_command
 

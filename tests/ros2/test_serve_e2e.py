@@ -1,0 +1,459 @@
+"""``urdf2mjcf serve robot.xml --ros2`` through the real command, against a second,
+independent Zenoh session that does what an rmw_zenoh node does: it finds the node
+and its endpoints in the liveliness tokens, reads CDR with rosbags' typestore (not
+our decoder), writes commands the same way and calls the services."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+zenoh = pytest.importorskip("zenoh")
+
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+SIM_ARM = ROOT / "tests" / "data" / "sim_robot" / "urdf" / "sim_arm.urdf.xacro"
+STORE = get_typestore(Stores.ROS2_JAZZY)
+# the services' halves as messages of their own (rosbags knows no service; CDR is the same)
+_SRV = {
+    "mujoco_ros2_control_msgs/msg/SetPause_Request": "bool paused",
+    "mujoco_ros2_control_msgs/msg/StepSimulation_Request": "uint32 steps",
+    "mujoco_ros2_control_msgs/msg/Result_Response": "bool success\nstring message",
+}
+for _name, _text in _SRV.items():
+    STORE.register(get_types_from_msg(_text, _name))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": str(ROOT), "ROS_DOMAIN_ID": "0"}
+
+
+def _command(*args: str) -> list[str]:
+    return [
+        sys.executable,
+        "-c",
+        "from urdf2mjcf.cli import urdf2mjcf_main; urdf2mjcf_main()",
+        *args,
+    ]
+
+
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("sim_arm") / "robot.xml"
+    subprocess.run(
+        _command(
+            str(SIM_ARM),
+            "lidar_samples:=3",
+            "--package-path",
+            str(SIM_ARM.parents[2]),
+            "-o",
+            str(out),
+            "-q",
+        ),
+        check=True,
+        env=_env(),
+        capture_output=True,
+    )
+    return out
+
+
+class Served:
+    def __init__(self, robot: Path, port: int) -> None:
+        self.port = port
+        self.proc = subprocess.Popen(
+            _command("serve", str(robot), "--ros2", "--zenoh-listen", f"tcp/127.0.0.1:{port}"),
+            env=_env(),
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        self.lines: list[str] = []
+        self._ready = threading.Event()
+        threading.Thread(target=self._read, daemon=True).start()
+        assert self._ready.wait(30), "no 'serving' line: " + "".join(self.lines)
+
+    def _read(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            self.lines.append(line)
+            if line.startswith("serving "):
+                self._ready.set()
+
+    def stop(self) -> float:
+        t = time.monotonic()
+        self.proc.send_signal(signal.SIGTERM)
+        self.proc.wait(10)
+        return time.monotonic() - t
+
+
+def _session(port: int):
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("connect/endpoints", f'["tcp/127.0.0.1:{port}"]')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+@pytest.fixture(scope="module")
+def served(robot):
+    s = Served(robot, _free_port())
+    yield s
+    if s.proc.poll() is None:
+        s.stop()
+
+
+@pytest.fixture(scope="module")
+def client(served):
+    session = _session(served.port)
+    yield session
+    session.close()
+
+
+def _tokens(client) -> list[list[str]]:
+    deadline = time.monotonic() + 5
+    while True:
+        found = [
+            str(r.ok.key_expr).split("/") for r in client.liveliness().get("@ros2_lv/0/**") if r.ok
+        ]
+        if len(found) > 5 or time.monotonic() > deadline:
+            return found
+        time.sleep(0.1)
+
+
+def _key(client, kind: str, topic: str) -> str:
+    """The data key of the served endpoint on ``topic``, from its token alone."""
+    for t in _tokens(client):
+        if len(t) == 13 and t[5] == kind and t[9] == topic.replace("/", "%"):
+            return f"{t[1]}/{topic[1:]}/{t[10]}/{t[11]}"
+    raise AssertionError(f"no {kind} token for {topic}")
+
+
+def _ros_key(topic: str, type_name: str) -> str:
+    # the design document's format, the hash as rosbags computes it
+    pkg, kind, name = type_name.split("/")
+    return f"0/{topic[1:]}/{pkg}::{kind}::dds_::{name}_/{STORE.hash_rihs01(type_name)}"
+
+
+def _collect(client, topic: str, type_name: str, seconds: float) -> list[tuple[object, bytes]]:
+    got: list[tuple[object, bytes]] = []
+    sub = client.declare_subscriber(
+        _ros_key(topic, type_name),
+        lambda s: got.append(
+            (STORE.deserialize_cdr(s.payload.to_bytes(), type_name), s.attachment.to_bytes())
+        ),
+    )
+    time.sleep(seconds)
+    sub.undeclare()
+    return got
+
+
+def _publish(client, topic: str, type_name: str, msg: object, seq: int = 1) -> None:
+    att = struct.pack("<qqB", seq, time.time_ns(), 16) + bytes(range(16))
+    client.put(
+        _ros_key(topic, type_name), bytes(STORE.serialize_cdr(msg, type_name)), attachment=att
+    )
+
+
+def _call(client, key: str, request_type: str, request: object) -> object:
+    att = struct.pack("<qqB", 42, time.time_ns(), 16) + bytes(16)
+    replies = list(
+        client.get(
+            key,
+            payload=bytes(STORE.serialize_cdr(request, request_type)),
+            attachment=att,
+            timeout=10,
+        )
+    )
+    assert len(replies) == 1 and replies[0].ok is not None
+    back = replies[0].ok.attachment.to_bytes()
+    assert struct.unpack_from("<q", back)[0] == 42  # the request's sequence number, back
+    return STORE.deserialize_cdr(
+        replies[0].ok.payload.to_bytes(), "mujoco_ros2_control_msgs/msg/Result_Response"
+    )
+
+
+def _positions(client, names: list[str]) -> np.ndarray:
+    js = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.15)[-1][0]
+    return np.array([js.position[list(js.name).index(n)] for n in names])
+
+
+def test_the_node_and_its_endpoints_are_in_the_graph_with_rosbags_type_hashes(client):
+    tokens = _tokens(client)
+    nodes = [t for t in tokens if t[5] == "NN"]
+    assert [t[8] for t in nodes] == ["ros2_control_node"]
+    endpoints = {(t[5], t[9].replace("%", "/")): (t[10], t[11]) for t in tokens if len(t) == 13}
+    for topic, type_name in [
+        ("/clock", "rosgraph_msgs/msg/Clock"),
+        ("/joint_states", "sensor_msgs/msg/JointState"),
+        ("/tf", "tf2_msgs/msg/TFMessage"),
+        ("/tf_static", "tf2_msgs/msg/TFMessage"),
+    ]:
+        dds = "{}::{}::dds_::{}_".format(*type_name.split("/"))
+        assert endpoints[("MP", topic)] == (dds, STORE.hash_rihs01(type_name))
+    assert endpoints[("MS", "/forward_position_controller/commands")][1] == STORE.hash_rihs01(
+        "std_msgs/msg/Float64MultiArray"
+    )
+    assert endpoints[("MS", "/joint_trajectory_controller/joint_trajectory")][
+        1
+    ] == STORE.hash_rihs01("trajectory_msgs/msg/JointTrajectory")
+    for name in ("reset_world", "set_pause", "step_simulation"):
+        assert ("SS", f"/ros2_control_node/{name}") in endpoints
+    # every token names the one session: the node's id in the graph
+    assert len({t[2] for t in tokens}) == 1
+
+
+def test_joint_states_and_clock_decode_with_rosbags(client, robot):
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
+    states = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.5)
+    clocks = _collect(client, "/clock", "rosgraph_msgs/msg/Clock", 0.5)
+    assert len(states) >= 10 and len(clocks) >= 10  # 100 Hz of simulated time
+    js, att = states[-1]
+    assert list(js.name) == names  # every joint, the mimic follower too
+    assert len(js.position) == len(js.velocity) == len(js.effort) == len(names)
+    assert len(att) == 33 and att[16] == 16
+    seqs = [struct.unpack_from("<q", a)[0] for _, a in states]
+    assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
+    times = [c.clock.sec + c.clock.nanosec * 1e-9 for c, _ in clocks]
+    assert all(b > a for a, b in zip(times, times[1:], strict=False))
+    # paced: never ahead of the wall clock (behind it only on a loaded machine)
+    assert 0.1 < times[-1] - times[0] < 0.6
+
+
+def test_tf_static_is_latched_for_a_late_subscriber(client):
+    got: list[object] = []
+    sub = zenoh.ext.declare_advanced_subscriber(
+        client,
+        _ros_key("/tf_static", "tf2_msgs/msg/TFMessage"),
+        handler=lambda s: got.append(
+            STORE.deserialize_cdr(s.payload.to_bytes(), "tf2_msgs/msg/TFMessage")
+        ),
+        history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+    )
+    deadline = time.monotonic() + 5
+    while not got and time.monotonic() < deadline:
+        time.sleep(0.05)
+    sub.undeclare()
+    assert got, "no /tf_static from the publisher's cache"
+    frames = {(t.header.frame_id, t.child_frame_id) for t in got[0].transforms}
+    assert ("world", "base_link") in frames
+    moving = _collect(client, "/tf", "tf2_msgs/msg/TFMessage", 0.2)[-1][0]
+    children = {t.child_frame_id for t in moving.transforms}
+    assert {"shoulder_link", "tool0"} <= children  # named as the URDF's links
+
+
+def test_a_forward_command_moves_the_joints_there_and_is_clipped_to_limits(client, served, robot):
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    joints = [
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, int(m.actuator_trnid[a, 0]))
+        for a in range(m.nu)
+    ]
+    target = np.array([0.4, 0.2, -0.8, 0.3, 0.5])  # the finger's range is 0..0.04: clipped
+    Msg = STORE.types["std_msgs/msg/Float64MultiArray"]
+    Layout = STORE.types["std_msgs/msg/MultiArrayLayout"]
+    _publish(
+        client,
+        "/forward_position_controller/commands",
+        "std_msgs/msg/Float64MultiArray",
+        Msg(layout=Layout(dim=[], data_offset=0), data=target),
+    )
+    _wait_sim(client, 1.5)
+    reached = _positions(client, joints)
+    np.testing.assert_allclose(reached[:4], target[:4], atol=0.05)
+    assert reached[4] == pytest.approx(0.04, abs=0.005)
+    assert any("clipped" in line for line in served.lines)
+    # a wrong length and a NaN are dropped, one warning, and the server goes on
+    _publish(
+        client,
+        "/forward_position_controller/commands",
+        "std_msgs/msg/Float64MultiArray",
+        Msg(layout=Layout(dim=[], data_offset=0), data=np.array([1.0, 2.0])),
+        seq=2,
+    )
+    _publish(
+        client,
+        "/forward_position_controller/commands",
+        "std_msgs/msg/Float64MultiArray",
+        Msg(layout=Layout(dim=[], data_offset=0), data=np.array([np.nan] * 5)),
+        seq=3,
+    )
+    time.sleep(0.3)
+    np.testing.assert_allclose(_positions(client, joints)[:4], target[:4], atol=0.05)
+    assert sum("dropped" in line for line in served.lines) == 1
+    assert served.proc.poll() is None
+
+
+def _trajectory(names, points):
+    T = STORE.types
+    return T["trajectory_msgs/msg/JointTrajectory"](
+        header=T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id=""
+        ),
+        joint_names=names,
+        points=[
+            T["trajectory_msgs/msg/JointTrajectoryPoint"](
+                positions=np.array(p),
+                velocities=np.array([]),
+                accelerations=np.array([]),
+                effort=np.array([]),
+                time_from_start=T["builtin_interfaces/msg/Duration"](
+                    sec=int(t), nanosec=int((t % 1) * 1e9)
+                ),
+            )
+            for t, p in points
+        ],
+    )
+
+
+def _sim_time(client) -> float:
+    c = _collect(client, "/clock", "rosgraph_msgs/msg/Clock", 0.05)[-1][0]
+    return c.clock.sec + c.clock.nanosec * 1e-9
+
+
+def _wait_sim(client, seconds: float) -> None:
+    """Until ``seconds`` of simulated time have passed (the machine may be loaded)."""
+    t0 = _sim_time(client)
+    deadline = time.monotonic() + 20 * seconds
+    while _sim_time(client) < t0 + seconds and time.monotonic() < deadline:
+        pass
+
+
+def test_a_joint_trajectory_is_followed_on_the_simulated_clock(client):
+    names = ["shoulder_pan_joint", "elbow_joint"]
+    start = _positions(client, names)
+    end = np.array([-0.4, -1.2])
+    msg = _trajectory(names, [(0.5, [0.0, -1.0]), (1.0, end)])
+    _publish(
+        client,
+        "/joint_trajectory_controller/joint_trajectory",
+        "trajectory_msgs/msg/JointTrajectory",
+        msg,
+    )
+    _wait_sim(client, 0.5)
+    mid = _positions(client, names)
+    # on its way: past the start, short of the end
+    assert np.all(np.abs(mid - start) > 0.05) and np.all(np.abs(mid - end) > 0.05)
+    _wait_sim(client, 1.0)
+    np.testing.assert_allclose(_positions(client, names), end, atol=0.05)
+    # times going back: dropped, the joints stay
+    back = _trajectory(names, [(1.0, [0.5, 0.5]), (0.5, [0.6, 0.6])])
+    _publish(
+        client,
+        "/joint_trajectory_controller/joint_trajectory",
+        "trajectory_msgs/msg/JointTrajectory",
+        back,
+        seq=2,
+    )
+    _wait_sim(client, 0.5)
+    np.testing.assert_allclose(_positions(client, names), end, atol=0.05)
+
+
+def test_pause_step_and_reset_world_services(client, robot):
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    T = STORE.types
+    pause = _key(client, "SS", "/ros2_control_node/set_pause")
+    step = _key(client, "SS", "/ros2_control_node/step_simulation")
+    reset = _key(client, "SS", "/ros2_control_node/reset_world")
+    SetPause = T["mujoco_ros2_control_msgs/msg/SetPause_Request"]
+    Step = T["mujoco_ros2_control_msgs/msg/StepSimulation_Request"]
+    # stepping while running is refused
+    assert not _call(
+        client, step, "mujoco_ros2_control_msgs/msg/StepSimulation_Request", Step(steps=10)
+    ).success
+    assert _call(
+        client, pause, "mujoco_ros2_control_msgs/msg/SetPause_Request", SetPause(paused=True)
+    ).success
+    a = _collect(client, "/clock", "rosgraph_msgs/msg/Clock", 0.2)
+    time.sleep(0.2)
+    assert not _collect(client, "/clock", "rosgraph_msgs/msg/Clock", 0.2)  # paused: no time passes
+    t0 = a[-1][0].clock.sec + a[-1][0].clock.nanosec * 1e-9 if a else None
+    got = []
+    sub = client.declare_subscriber(
+        _ros_key("/clock", "rosgraph_msgs/msg/Clock"),
+        lambda s: got.append(
+            STORE.deserialize_cdr(s.payload.to_bytes(), "rosgraph_msgs/msg/Clock")
+        ),
+    )
+    reply = _call(
+        client, step, "mujoco_ros2_control_msgs/msg/StepSimulation_Request", Step(steps=100)
+    )
+    time.sleep(0.1)
+    sub.undeclare()
+    assert reply.success, reply.message
+    t1 = got[-1].clock.sec + got[-1].clock.nanosec * 1e-9
+    if t0 is not None:
+        assert t1 - t0 == pytest.approx(100 * m.opt.timestep, abs=1e-9)
+    # reset to the home keyframe: the arm back where the conversion put it
+    empty = _empty_reset()
+    assert _call(client, reset, "mujoco_ros2_control_msgs/msg/ResetWorld_Request", empty).success
+    _call(client, step, "mujoco_ros2_control_msgs/msg/StepSimulation_Request", Step(steps=2))
+    home = m.key_qpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")]
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
+    time.sleep(0.05)
+    assert _call(
+        client, pause, "mujoco_ros2_control_msgs/msg/SetPause_Request", SetPause(paused=False)
+    ).success
+    np.testing.assert_allclose(_positions(client, names), home, atol=0.02)
+    bad = _empty_reset(keyframe="nowhere")
+    reply = _call(client, reset, "mujoco_ros2_control_msgs/msg/ResetWorld_Request", bad)
+    assert not reply.success and "home" in reply.message
+
+
+def _empty_reset(keyframe: str = ""):
+    T = STORE.types
+    if "mujoco_ros2_control_msgs/msg/ResetWorld_Request" not in T:
+        STORE.register(
+            get_types_from_msg(
+                "string keyframe\nmujoco_ros2_control_msgs/msg/SimulationState state_overrides",
+                "mujoco_ros2_control_msgs/msg/ResetWorld_Request",
+            )
+            | get_types_from_msg(
+                "sensor_msgs/msg/JointState joint_states\n"
+                "mujoco_ros2_control_msgs/msg/FreeJointState[] free_joints",
+                "mujoco_ros2_control_msgs/msg/SimulationState",
+            )
+            | get_types_from_msg(
+                "string name\ngeometry_msgs/msg/PoseStamped pose\ngeometry_msgs/msg/TwistStamped twist",
+                "mujoco_ros2_control_msgs/msg/FreeJointState",
+            )
+        )
+        T = STORE.types
+    stamp = T["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+    js = T["sensor_msgs/msg/JointState"](
+        header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=""),
+        name=[],
+        position=np.array([]),
+        velocity=np.array([]),
+        effort=np.array([]),
+    )
+    state = T["mujoco_ros2_control_msgs/msg/SimulationState"](joint_states=js, free_joints=[])
+    return T["mujoco_ros2_control_msgs/msg/ResetWorld_Request"](
+        keyframe=keyframe, state_overrides=state
+    )
+
+
+def test_sigterm_ends_the_server_within_2_s_and_the_node_leaves_the_graph(robot):
+    s = Served(robot, _free_port())
+    watcher = _session(s.port)
+    try:
+        assert [t for t in _tokens(watcher) if t[5] == "NN"]
+        assert s.stop() < 2.0
+    finally:
+        watcher.close()
