@@ -155,7 +155,7 @@ def serve_command(
         where = ", ".join(
             [
                 *(f"listening on {e}" for e in zenoh_listen),
-                *(f"connected to {e}" for e in endpoints.connect),
+                *(f"connecting to {e}" for e in endpoints.connect),
             ]
         )
         groups = ", ".join(f"/{g}/commands" for g in server.groups) or "no controllers"
