@@ -68,7 +68,7 @@ def _default_domain() -> int:
 
 
 @click.command("urdf2mjcf serve", context_settings={"help_option_names": ["-h", "--help"]})
-@click.argument("model", type=click.Path(path_type=Path, exists=True, dir_okay=False))
+@click.argument("model", type=click.Path(path_type=Path, exists=True))
 @click.option("--ros2", is_flag=True, help="Serve to ROS 2 over rmw_zenoh (the transport served).")
 @click.option(
     "--zenoh-connect",
@@ -122,7 +122,8 @@ def serve_command(
     node_name: str,
     verbose: int,
 ) -> None:
-    """Serve MODEL (a converted robot's robot.xml or scene.xml) live to ROS 2.
+    """Serve MODEL (a converted robot's robot.xml or scene.xml, or a facility bundle:
+    its folder or scene.xml) live to ROS 2.
 
     Its node publishes /clock, /joint_states, /tf and /tf_static, takes the forward
     controllers' /<group>/commands and /joint_trajectory_controller/joint_trajectory,
@@ -136,20 +137,17 @@ def serve_command(
     require("ros2", "urdf2mjcf serve --ros2")
     configure_logging(verbose, False)
 
-    from .server import ServeConfig, load, serve
+    from .server import ServeConfig, build, serve
     from .session import ROUTER, Endpoints
 
     if zenoh_listen or zenoh_connect:
         endpoints = Endpoints(listen=zenoh_listen, connect=zenoh_connect)
     else:  # as an rmw_zenoh node: the local router, and a loopback port for peers
         endpoints = Endpoints(listen=("tcp/127.0.0.1:0",), connect=(ROUTER,))
-    try:
-        m = load(model)
-    except ValueError as exc:
-        raise ServeError(f"{model}: {exc}") from None
     config = ServeConfig(
         endpoints=endpoints, domain=domain, node_name=node_name, pace=pace, rate=rate
     )
+    served = build(model, config, ServeError)
 
     def ready(server: Any) -> None:
         where = ", ".join(
@@ -159,6 +157,9 @@ def serve_command(
             ]
         )
         groups = ", ".join(f"/{g}/commands" for g in server.groups) or "no controllers"
+        rovers = getattr(server.extensions[0], "driven", {}) if server.extensions else {}
+        if rovers:
+            groups += "; rovers " + ", ".join(f"/{r}/cmd_vel" for r in rovers)
         click.echo(
             f"serving {printable(str(model))} to ROS 2 as node /{node_name} (domain {domain}, "
             f"rmw_zenoh; {where}): {len(server.joint_names)} joints, {groups}; Ctrl-C to stop",
@@ -166,7 +167,7 @@ def serve_command(
         )
 
     try:
-        server = serve(m, config, ready)
+        server = serve(served, ready)
     except KeyboardInterrupt:
         click.echo("stopped (Ctrl-C)", err=True)
         return

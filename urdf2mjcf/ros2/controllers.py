@@ -59,11 +59,12 @@ def actuator_kind(m: mujoco.MjModel, a: int) -> str | None:
     return None
 
 
-def groups(m: mujoco.MjModel) -> list[Group]:
-    """The forward controllers the model's actuators make, one per kind present."""
+def groups(m: mujoco.MjModel, exclude: frozenset[int] = frozenset()) -> list[Group]:
+    """The forward controllers the model's actuators (but ``exclude``) make, one per
+    kind present."""
     by_kind: dict[str, list[int]] = {k: [] for k in KINDS}
     for a in range(m.nu):
-        kind = actuator_kind(m, a)
+        kind = None if a in exclude else actuator_kind(m, a)
         if kind is not None:
             by_kind[kind].append(a)
     out = []

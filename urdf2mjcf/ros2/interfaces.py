@@ -40,6 +40,12 @@ MESSAGES: dict[str, str] = {
         "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\n"
         "float64[] effort"
     ),
+    "sensor_msgs/msg/Imu": (
+        "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n"
+        "float64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\n"
+        "float64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\n"
+        "float64[9] linear_acceleration_covariance"
+    ),
     "trajectory_msgs/msg/JointTrajectoryPoint": (
         "float64[] positions\nfloat64[] velocities\nfloat64[] accelerations\n"
         "float64[] effort\nbuiltin_interfaces/Duration time_from_start"

@@ -30,6 +30,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..errors import ConversionError
 from . import controllers, keyexpr
 from .session import Endpoints, Node
 
@@ -94,10 +95,36 @@ class _Frames:
     fixed: list[int] = field(default_factory=list)
 
 
+class Extension:
+    """What a served world adds to the robot's interface (the rovers'): its endpoints,
+    its actuators (left out of the forward groups), and hooks into the loop, all run
+    in the simulation thread but :meth:`open`."""
+
+    actuators: frozenset[int] = frozenset()
+
+    def open(self, node: Node, server: Server) -> None:
+        """Declare the endpoints (callbacks queue through ``server.post``)."""
+
+    def publish(self) -> None:
+        """At each publishing tick."""
+
+    def reset(self) -> None:
+        """After ``reset_world``."""
+
+
 class Server:
-    def __init__(self, m: mujoco.MjModel, config: ServeConfig) -> None:
+    def __init__(
+        self,
+        m: mujoco.MjModel,
+        config: ServeConfig,
+        d: mujoco.MjData | None = None,
+        step: Callable[[], None] | None = None,
+        extensions: tuple[Extension, ...] = (),
+    ) -> None:
         self.m, self.config = m, config
-        self.d = mujoco.MjData(m)
+        self.d = mujoco.MjData(m) if d is None else d
+        self._physics = step or (lambda: mujoco.mj_step(self.m, self.d))
+        self.extensions = extensions
         self.warn = Warnings()
         J = mujoco.mjtObj.mjOBJ_JOINT
         one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -107,7 +134,8 @@ class Server:
         self.joint_names = [mujoco.mj_id2name(m, J, j) or "" for j in self.joints]
         self._qadr = np.array([m.jnt_qposadr[j] for j in self.joints], dtype=int)
         self._vadr = np.array([m.jnt_dofadr[j] for j in self.joints], dtype=int)
-        self.groups = {g.name: g for g in controllers.groups(m)}
+        taken = frozenset().union(*(e.actuators for e in extensions))
+        self.groups = {g.name: g for g in controllers.groups(m, exclude=taken)}
         self._trajectory: controllers.Trajectory | None = None
         self._frames = self._split_frames()
         self._inbox: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
@@ -159,6 +187,8 @@ class Server:
             for a in g.actuators:
                 jq = self.m.jnt_qposadr[self.m.actuator_trnid[a, 0]]
                 self.d.ctrl[a] = self.d.qpos[jq] if g.kind == "position" else 0.0
+        for e in self.extensions:
+            e.reset()
         self._resync = True
 
     # -- commands (queued from Zenoh's threads, run in the simulation's) ----------------
@@ -175,6 +205,10 @@ class Server:
 
         self._inbox.put(run)
         return fut.result(timeout)
+
+    def post(self, fn: Callable[[], None]) -> None:
+        """Run ``fn`` in the simulation thread, before its next step."""
+        self._inbox.put(fn)
 
     def on_forward(self, group: controllers.Group, msg: dict[str, Any]) -> None:
         try:
@@ -342,7 +376,7 @@ class Server:
 
     def _step(self) -> None:
         self._follow()
-        mujoco.mj_step(self.m, self.d)
+        self._physics()
         self.steps += 1
         if self.d.time + 1e-12 >= self._next_publish:
             self._publish()
@@ -407,6 +441,8 @@ class Server:
         self._as.publish(js)
         if self._frames.moving:
             self._tf.publish(self.transforms(self._frames.moving))
+        for e in self.extensions:
+            e.publish()
         self.published += 1
 
     def run(self, ready: Callable[[], None] | None = None) -> None:
@@ -433,15 +469,30 @@ class Server:
                 self._resync = True  # slower than real time: go on from here
 
 
-def load(path: Path) -> mujoco.MjModel:
-    return mujoco.MjModel.from_xml_path(str(path))
+def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Server:
+    """The server of ``path``: a model file (robot.xml, scene.xml), or a facility bundle
+    (its folder, or its scene.xml beside facility.json) with its rovers, if any. Read as
+    a stranger's files; ``error`` (a ConversionError) names what is refused."""
+    from ..mjcf_input import load_model
+
+    if not (path.is_dir() or (path.parent / "facility.json").is_file()):
+        return Server(load_model(path, error=error, what="model"), config)
+    from ..runner.load import open_facility
+    from ..runner.rover.roles import find_rovers
+
+    _, _, manifest, m, d = open_facility(path)
+    if not find_rovers(m, manifest):
+        return Server(m, config, d)
+    from ..runner.rover.sim import RoverSim
+    from .rovers import Rovers
+
+    sim = RoverSim(path)
+    return Server(sim.m, config, sim.d, step=lambda: sim.step(1), extensions=(Rovers(sim),))
 
 
-def serve(
-    model: mujoco.MjModel, config: ServeConfig, ready: Callable[[Server], None] | None = None
-) -> Server:
-    """Serve ``model`` until the server's :attr:`Server.stop` is set (or Ctrl-C)."""
-    server = Server(model, config)
+def serve(server: Server, ready: Callable[[Server], None] | None = None) -> Server:
+    """Serve until the server's :attr:`Server.stop` is set (or Ctrl-C)."""
+    config = server.config
     node = Node(config.endpoints, config.domain, config.node_name, config.namespace)
     try:
         server.open(node)
