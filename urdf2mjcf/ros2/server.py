@@ -433,6 +433,8 @@ class Server:
             node.service(
                 f"/{base}/{name}", f"mujoco_ros2_control_msgs/srv/{srv}", handler, on_bad=bad
             )
+        for e in self.extensions:
+            e.open(node, self)
 
     def _publish(self) -> None:
         self._clock.publish({"clock": _time(self.d.time)})
