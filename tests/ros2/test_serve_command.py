@@ -172,3 +172,15 @@ def test_a_forward_command_of_the_wrong_length_or_not_finite_is_refused():
     for bad in ([1, 2], [1, 2, float("inf")]):
         with pytest.raises(controllers.BadCommand):
             controllers.forward_command(g, bad)
+
+
+def test_a_folder_that_is_no_bundle_or_a_broken_manifest_is_one_line(tmp_path, model):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = _serve(str(empty), "--ros2", "--zenoh-listen", "tcp/127.0.0.1:0")
+    assert r.returncode == 2 and r.stderr.startswith("error: ") and str(empty) in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    (tmp_path / "facility.json").write_bytes(bytes(range(256)))
+    r = _serve(str(model), "--ros2", "--zenoh-listen", "tcp/127.0.0.1:0")
+    assert r.returncode == 2 and "facility.json" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

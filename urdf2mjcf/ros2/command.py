@@ -137,8 +137,9 @@ def serve_command(
     require("ros2", "urdf2mjcf serve --ros2")
     configure_logging(verbose, False)
 
-    from .server import ServeConfig, build, serve
+    from .server import ServeConfig, serve
     from .session import ROUTER, Endpoints
+    from .world import build
 
     if zenoh_listen or zenoh_connect:
         endpoints = Endpoints(listen=zenoh_listen, connect=zenoh_connect)
@@ -166,9 +167,6 @@ def serve_command(
             err=True,
         )
 
-    try:
-        server = serve(served, ready)
-    except KeyboardInterrupt:
-        click.echo("stopped (Ctrl-C)", err=True)
-        return
-    click.echo(f"stopped after {server.steps} steps", err=True)
+    # Ctrl-C and SIGTERM unwind through here (the session closed on the way out): the
+    # command's one line and exit code are every command's (command_runner)
+    serve(served, ready)

@@ -24,13 +24,11 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
-from ..errors import ConversionError
 from . import controllers, keyexpr
 from .session import Endpoints, Node
 
@@ -469,27 +467,6 @@ class Server:
                 self.stop.wait(ahead)
             elif ahead < -SYNC_MISALIGN:
                 self._resync = True  # slower than real time: go on from here
-
-
-def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Server:
-    """The server of ``path``: a model file (robot.xml, scene.xml), or a facility bundle
-    (its folder, or its scene.xml beside facility.json) with its rovers, if any. Read as
-    a stranger's files; ``error`` (a ConversionError) names what is refused."""
-    from ..mjcf_input import load_model
-
-    if not (path.is_dir() or (path.parent / "facility.json").is_file()):
-        return Server(load_model(path, error=error, what="model"), config)
-    from ..runner.load import open_facility
-    from ..runner.rover.roles import find_rovers
-
-    _, _, manifest, m, d = open_facility(path)
-    if not find_rovers(m, manifest):
-        return Server(m, config, d)
-    from ..runner.rover.sim import RoverSim
-    from .rovers import Rovers
-
-    sim = RoverSim(path)
-    return Server(sim.m, config, sim.d, step=lambda: sim.step(1), extensions=(Rovers(sim),))
 
 
 def serve(server: Server, ready: Callable[[Server], None] | None = None) -> Server:

@@ -1,0 +1,29 @@
+"""What a path serves: a model file, or a facility bundle with its rovers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import ConversionError
+from .server import ServeConfig, Server
+
+
+def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Server:
+    """The server of ``path``: a model file (robot.xml, scene.xml), or a facility bundle
+    (its folder, or its scene.xml beside facility.json) with its rovers, if any. Read as
+    a stranger's files; ``error`` (a ConversionError) names what is refused."""
+    from ..mjcf_input import load_model
+
+    if not (path.is_dir() or (path.parent / "facility.json").is_file()):
+        return Server(load_model(path, error=error, what="model"), config)
+    from ..runner.load import open_facility
+    from ..runner.rover.roles import find_rovers
+
+    _, _, manifest, m, d = open_facility(path)
+    if not find_rovers(m, manifest):
+        return Server(m, config, d)
+    from ..runner.rover.sim import RoverSim
+    from .rovers import Rovers
+
+    sim = RoverSim(path)
+    return Server(sim.m, config, sim.d, step=lambda: sim.step(1), extensions=(Rovers(sim),))
