@@ -16,6 +16,8 @@ from urdf2mjcf.ros2 import controllers
 
 ROOT = Path(__file__).resolve().parents[2]
 MODEL = """<mujoco>
+  <option integrator="implicitfast"/>
+  <default><joint armature="0.01" damping="0.1"/></default>
   <worldbody>
     <body name="link1"><joint name="j1" range="-1 1"/><geom size="0.1" mass="1"/>
       <body name="link2" pos="0 0 0.3"><joint name="j2"/><geom size="0.1" mass="1"/>

@@ -465,3 +465,41 @@ def test_sigterm_or_ctrl_c_ends_the_server_within_2_s_and_the_node_leaves_the_gr
         assert left == []
     finally:
         watcher.close()
+
+
+def test_velocity_and_effort_groups_drive_their_actuators(tmp_path):
+    from tests.ros2.test_serve_command import MODEL
+
+    path = tmp_path / "robot.xml"
+    path.write_text(MODEL)
+    s = Served(path, _free_port())
+    client = _session(s.port)
+    try:
+        keys = {t[9].replace("%", "/") for t in _tokens(client) if len(t) == 13 and t[5] == "MS"}
+        assert {
+            "/forward_position_controller/commands",
+            "/forward_velocity_controller/commands",
+            "/forward_effort_controller/commands",
+        } <= keys
+        Msg = STORE.types["std_msgs/msg/Float64MultiArray"]
+        Layout = STORE.types["std_msgs/msg/MultiArrayLayout"]
+
+        def send(group: str, values: list[float]) -> None:
+            _publish(
+                client,
+                f"/{group}/commands",
+                "std_msgs/msg/Float64MultiArray",
+                Msg(layout=Layout(dim=[], data_offset=0), data=np.array(values)),
+            )
+
+        send("forward_velocity_controller", [0.5])
+        send("forward_effort_controller", [5.0])  # the motor's range is -2..2: clipped
+        _wait_sim(client, 1.0)
+        js = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.15)[-1][0]
+        assert list(js.name) == ["j1", "j2", "j3"]
+        assert js.velocity[1] == pytest.approx(0.5, abs=0.05), (list(js.velocity), list(js.effort), s.lines)
+        assert js.effort[2] == pytest.approx(2.0, abs=1e-9)  # MuJoCo's qfrc_actuator
+        assert any("clipped" in line and "j3" in line for line in s.lines)
+    finally:
+        client.close()
+        s.stop()
