@@ -186,3 +186,75 @@ def test_a_folder_that_is_no_bundle_or_a_broken_manifest_is_one_line(tmp_path, m
     r = _serve(str(model), "--ros2", "--zenoh-listen", "tcp/127.0.0.1:0")
     assert r.returncode == 2 and "facility.json" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+CONTROLLERS = """controller_manager:
+  ros__parameters:
+    update_rate: 500
+    joint_state_broadcaster:
+      type: joint_state_broadcaster/JointStateBroadcaster
+    arm_controller:
+      type: joint_trajectory_controller/JointTrajectoryController
+    spin_controller:
+      type: velocity_controllers/JointGroupVelocityController
+    push_controller:
+      type: forward_command_controller/ForwardCommandController
+    odd_controller:
+      type: admittance_controller/AdmittanceController
+arm_controller:
+  ros__parameters:
+    joints: [j1]
+    command_interfaces: [position]
+    state_interfaces: [position, velocity]
+spin_controller:
+  ros__parameters:
+    joints: [j2]
+push_controller:
+  ros__parameters:
+    joints: [j3]
+    interface_name: effort
+"""
+
+
+def test_a_controllers_file_names_the_groups_and_their_interfaces(tmp_path, caplog):
+    from urdf2mjcf.ros2 import controller_file
+
+    path = tmp_path / "controllers.yaml"
+    path.write_text(CONTROLLERS)
+    m = mujoco.MjModel.from_xml_string(MODEL)
+    kinds = {a: controllers.actuator_kind(m, a) for a in range(m.nu)}
+    got = controller_file.read(path, m, kinds)
+    assert [(g.name, g.kind, g.joints) for g in got.trajectory] == [
+        ("arm_controller", "position", ("j1",))
+    ]
+    assert [(g.name, g.kind, g.joints) for g in got.forward] == [
+        ("spin_controller", "velocity", ("j2",)),
+        ("push_controller", "effort", ("j3",)),
+    ]
+    assert "AdmittanceController is not served" in caplog.text
+
+
+@pytest.mark.parametrize(
+    ("edit", "says"),
+    [
+        (
+            ("joints: [j2]\npush", "joints: [j1]\npush"),
+            "joint 'j1' has a position actuator in the model, not a velocity one",
+        ),
+        (
+            ("joints: [j1]\n    command", "joints: [nowhere]\n    command"),
+            "joint 'nowhere' has no actuator",
+        ),
+        (("interface_name: effort", "interface_name: torque"), "interface 'torque'"),
+        (("command_interfaces: [position]", "command_interfaces: [velocity]"), "only [position]"),
+    ],
+)
+def test_a_controllers_file_the_model_cannot_serve_is_one_line(tmp_path, model, edit, says):
+    path = tmp_path / "controllers.yaml"
+    path.write_text(CONTROLLERS.replace(*edit))
+    r = _serve(
+        str(model), "--ros2", "--zenoh-listen", "tcp/127.0.0.1:0", "--controllers", str(path)
+    )
+    assert r.returncode == 2, r.stderr
+    (line,) = r.stderr.strip().splitlines()
+    assert line.startswith(f"error: {path}: ") and says in line, line

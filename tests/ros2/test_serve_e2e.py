@@ -76,10 +76,12 @@ def robot(tmp_path_factory) -> Path:
 
 
 class Served:
-    def __init__(self, robot: Path, port: int) -> None:
+    def __init__(self, robot: Path, port: int, *extra: str) -> None:
         self.port = port
         self.proc = subprocess.Popen(
-            _command("serve", str(robot), "--ros2", "--zenoh-listen", f"tcp/127.0.0.1:{port}"),
+            _command(
+                "serve", str(robot), "--ros2", "--zenoh-listen", f"tcp/127.0.0.1:{port}", *extra
+            ),
             env=_env(),
             stderr=subprocess.PIPE,
             text=True,
@@ -497,9 +499,60 @@ def test_velocity_and_effort_groups_drive_their_actuators(tmp_path):
         _wait_sim(client, 1.0)
         js = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.15)[-1][0]
         assert list(js.name) == ["j1", "j2", "j3"]
-        assert js.velocity[1] == pytest.approx(0.5, abs=0.05), (list(js.velocity), list(js.effort), s.lines)
+        assert js.velocity[1] == pytest.approx(0.5, abs=0.05), (
+            list(js.velocity),
+            list(js.effort),
+            s.lines,
+        )
         assert js.effort[2] == pytest.approx(2.0, abs=1e-9)  # MuJoCo's qfrc_actuator
         assert any("clipped" in line and "j3" in line for line in s.lines)
+    finally:
+        client.close()
+        s.stop()
+
+
+SIM_ARM_CONTROLLERS = """controller_manager:
+  ros__parameters:
+    joint_state_broadcaster: {type: joint_state_broadcaster/JointStateBroadcaster}
+    arm_controller: {type: joint_trajectory_controller/JointTrajectoryController}
+    gripper_controller: {type: position_controllers/JointGroupPositionController}
+arm_controller:
+  ros__parameters:
+    joints: [shoulder_pan_joint, shoulder_lift_joint, elbow_joint, wrist_joint]
+    command_interfaces: [position]
+gripper_controller:
+  ros__parameters:
+    joints: [finger_left_joint]
+"""
+
+
+def test_the_bringups_controllers_file_names_the_controllers(robot, tmp_path):
+    path = tmp_path / "controllers.yaml"
+    path.write_text(SIM_ARM_CONTROLLERS)
+    s = Served(robot, _free_port(), "--controllers", str(path))
+    client = _session(s.port)
+    try:
+        subs = {t[9].replace("%", "/") for t in _tokens(client) if len(t) == 13 and t[5] == "MS"}
+        assert subs == {"/arm_controller/joint_trajectory", "/gripper_controller/commands"}
+        names = ["shoulder_pan_joint", "elbow_joint"]
+        _publish(
+            client,
+            "/arm_controller/joint_trajectory",
+            "trajectory_msgs/msg/JointTrajectory",
+            _trajectory(names, [(0.5, [0.5, -1.1])]),
+        )
+        Msg = STORE.types["std_msgs/msg/Float64MultiArray"]
+        Layout = STORE.types["std_msgs/msg/MultiArrayLayout"]
+        _publish(
+            client,
+            "/gripper_controller/commands",
+            "std_msgs/msg/Float64MultiArray",
+            Msg(layout=Layout(dim=[], data_offset=0), data=np.array([0.02])),
+        )
+        _wait_sim(client, 1.5)
+        got = _positions(client, [*names, "finger_left_joint"])
+        np.testing.assert_allclose(got[:2], [0.5, -1.1], atol=0.05)
+        assert got[2] == pytest.approx(0.02, abs=0.004)
     finally:
         client.close()
         s.stop()

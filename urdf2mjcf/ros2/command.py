@@ -110,6 +110,14 @@ def _default_domain() -> int:
     show_default=True,
     help="The node's name; its services are /NAME/reset_world, set_pause, step_simulation.",
 )
+@click.option(
+    "--controllers",
+    type=click.Path(path_type=Path, exists=True, dir_okay=False),
+    help="ros2_control's controller_manager YAML (the bringup's controllers.yaml): its "
+    "trajectory and forward controllers, by name, over the model's actuators (default: "
+    "one forward controller per actuator kind, joint_trajectory_controller over the "
+    "position servos).",
+)
 @click.option("-v", "--verbose", count=True, help="More log lines (-vv: debug).")
 def serve_command(
     model: Path,
@@ -120,6 +128,7 @@ def serve_command(
     pace: float,
     rate: float,
     node_name: str,
+    controllers: Path | None,
     verbose: int,
 ) -> None:
     """Serve MODEL (a converted robot's robot.xml or scene.xml, or a facility bundle:
@@ -146,7 +155,12 @@ def serve_command(
     else:  # as an rmw_zenoh node: the local router, and a loopback port for peers
         endpoints = Endpoints(listen=("tcp/127.0.0.1:0",), connect=(ROUTER,))
     config = ServeConfig(
-        endpoints=endpoints, domain=domain, node_name=node_name, pace=pace, rate=rate
+        endpoints=endpoints,
+        domain=domain,
+        node_name=node_name,
+        pace=pace,
+        rate=rate,
+        controllers=controllers,
     )
     served = build(model, config, ServeError)
 
@@ -157,7 +171,15 @@ def serve_command(
                 *(f"connecting to {e}" for e in endpoints.connect),
             ]
         )
-        groups = ", ".join(f"/{g}/commands" for g in server.groups) or "no controllers"
+        groups = (
+            ", ".join(
+                [
+                    *(f"/{g}/commands" for g in server.groups),
+                    *(f"/{g}/joint_trajectory" for g in server.trajectory_groups),
+                ]
+            )
+            or "no controllers"
+        )
         rovers = getattr(server.extensions[0], "driven", {}) if server.extensions else {}
         if rovers:
             groups += "; rovers " + ", ".join(f"/{r}/cmd_vel" for r in rovers)

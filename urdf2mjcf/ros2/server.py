@@ -14,6 +14,7 @@ and publishes; a service call waits for its answer from that thread.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import math
@@ -24,6 +25,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import mujoco
@@ -51,6 +53,10 @@ class ServeConfig:
     """Simulated seconds per wall-clock second."""
     rate: float = 100.0
     """Hz of /clock, /joint_states and /tf, in simulated time."""
+    controllers: Path | None = None
+    """ros2_control's controller_manager YAML (:mod:`.controller_file`); None: a
+    forward controller per actuator kind and a trajectory controller over the
+    position servos."""
 
 
 class Warnings:
@@ -133,8 +139,26 @@ class Server:
         self._qadr = np.array([m.jnt_qposadr[j] for j in self.joints], dtype=int)
         self._vadr = np.array([m.jnt_dofadr[j] for j in self.joints], dtype=int)
         taken = frozenset().union(*(e.actuators for e in extensions))
-        self.groups = {g.name: g for g in controllers.groups(m, exclude=taken)}
-        self._trajectory: controllers.Trajectory | None = None
+        if config.controllers is None:
+            self.groups = {g.name: g for g in controllers.groups(m, exclude=taken)}
+            position = self.groups.get(controllers.GROUP_NAME["position"])
+            self.trajectory_groups = (
+                {}
+                if position is None
+                else {
+                    controllers.TRAJECTORY_CONTROLLER: dataclasses.replace(
+                        position, name=controllers.TRAJECTORY_CONTROLLER
+                    )
+                }
+            )
+        else:
+            from .controller_file import read
+
+            kinds = {a: controllers.actuator_kind(m, a) for a in range(m.nu) if a not in taken}
+            given = read(config.controllers, m, {a: k for a, k in kinds.items() if k})
+            self.groups = {g.name: g for g in given.forward}
+            self.trajectory_groups = {g.name: g for g in given.trajectory}
+        self._trajectories: dict[str, controllers.Trajectory] = {}
         self._frames = self._split_frames()
         self._inbox: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self.paused = False
@@ -180,8 +204,8 @@ class Server:
                     self.d.qvel[self.m.jnt_dofadr[j]] = overrides["velocity"][i]
         mujoco.mj_forward(self.m, self.d)
         # the command interfaces re-synced: position servos hold where the joints are
-        self._trajectory = None
-        for g in self.groups.values():
+        self._trajectories.clear()
+        for g in [*self.groups.values(), *self.trajectory_groups.values()]:
             for a in g.actuators:
                 jq = self.m.jnt_qposadr[self.m.actuator_trnid[a, 0]]
                 self.d.ctrl[a] = self.d.qpos[jq] if g.kind == "position" else 0.0
@@ -228,41 +252,41 @@ class Server:
         return clipped
 
     def _apply_forward(self, group: controllers.Group, values: np.ndarray) -> None:
-        if group.kind == "position":
-            self._trajectory = None  # the latest command on the interface wins
+        taken = set(group.actuators)  # the latest command on an interface wins
+        for name in [
+            n for n in self._trajectories if taken & set(self.trajectory_groups[n].actuators)
+        ]:
+            del self._trajectories[name]
         self.d.ctrl[list(group.actuators)] = self._clip(group, values, f"{group.name} commands")
 
-    def on_trajectory(self, msg: dict[str, Any]) -> None:
-        group = self.groups.get(controllers.GROUP_NAME["position"])
-        if group is None:
-            return
-
+    def on_trajectory(self, group: controllers.Group, msg: dict[str, Any]) -> None:
         def start() -> None:
             current = self.d.ctrl[list(group.actuators)].copy()
             try:
-                self._trajectory = controllers.trajectory(group, msg, self.d.time, current)
+                self._trajectories[group.name] = controllers.trajectory(
+                    group, msg, self.d.time, current
+                )
             except controllers.BadCommand as exc:
-                self.warn.drop("joint_trajectory", str(exc))
+                self.warn.drop(f"{group.name} joint_trajectory", str(exc))
 
         self._inbox.put(start)
 
     def _follow(self) -> None:
-        traj = self._trajectory
-        if traj is None:
-            return
-        group = self.groups[controllers.GROUP_NAME["position"]]
-        acts = [group.actuators[c] for c in traj.columns]
-        sub = controllers.Group(
-            group.name,
-            group.kind,
-            tuple(group.joints[c] for c in traj.columns),
-            tuple(acts),
-            group.low[list(traj.columns)],
-            group.high[list(traj.columns)],
-        )
-        self.d.ctrl[acts] = self._clip(sub, traj.sample(self.d.time), "trajectory positions")
-        if self.d.time > traj.end:
-            self._trajectory = None
+        for name, traj in list(self._trajectories.items()):
+            group = self.trajectory_groups[name]
+            cols = list(traj.columns)
+            acts = [group.actuators[c] for c in cols]
+            sub = controllers.Group(
+                group.name,
+                group.kind,
+                tuple(group.joints[c] for c in cols),
+                tuple(acts),
+                group.low[cols],
+                group.high[cols],
+            )
+            self.d.ctrl[acts] = self._clip(sub, traj.sample(self.d.time), "trajectory positions")
+            if self.d.time > traj.end:
+                del self._trajectories[name]
 
     # -- services ------------------------------------------------------------------------
 
@@ -410,11 +434,11 @@ class Server:
                 functools.partial(self.on_forward, g),
                 on_bad=bad,
             )
-        if controllers.GROUP_NAME["position"] in self.groups:
+        for g in self.trajectory_groups.values():
             node.subscribe(
-                f"/{controllers.TRAJECTORY_CONTROLLER}/joint_trajectory",
+                f"/{g.name}/joint_trajectory",
                 "trajectory_msgs/msg/JointTrajectory",
-                self.on_trajectory,
+                functools.partial(self.on_trajectory, g),
                 on_bad=bad,
             )
         base = (
