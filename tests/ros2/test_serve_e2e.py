@@ -5,6 +5,7 @@ our decoder), writes commands the same way and calls the services."""
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import socket
@@ -166,6 +167,16 @@ def _collect(client, topic: str, type_name: str, seconds: float) -> list[tuple[o
     return got
 
 
+def _last(client, topic: str, type_name: str) -> object:
+    """The latest message on ``topic`` (a subscription needs a moment to be routed, and
+    a loaded machine may publish late)."""
+    for _ in range(40):
+        got = _collect(client, topic, type_name, 0.1)
+        if got:
+            return got[-1][0]
+    raise AssertionError(f"nothing on {topic}")
+
+
 def _publish(client, topic: str, type_name: str, msg: object, seq: int = 1) -> None:
     att = struct.pack("<qqB", seq, time.time_ns(), 16) + bytes(range(16))
     client.put(
@@ -192,7 +203,7 @@ def _call(client, key: str, request_type: str, request: object) -> object:
 
 
 def _positions(client, names: list[str]) -> np.ndarray:
-    js = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.15)[-1][0]
+    js = _last(client, "/joint_states", "sensor_msgs/msg/JointState")
     return np.array([js.position[list(js.name).index(n)] for n in names])
 
 
@@ -256,7 +267,7 @@ def test_tf_static_is_latched_for_a_late_subscriber(client):
     assert got, "no /tf_static from the publisher's cache"
     frames = {(t.header.frame_id, t.child_frame_id) for t in got[0].transforms}
     assert ("world", "base_link") in frames
-    moving = _collect(client, "/tf", "tf2_msgs/msg/TFMessage", 0.2)[-1][0]
+    moving = _last(client, "/tf", "tf2_msgs/msg/TFMessage")
     children = {t.child_frame_id for t in moving.transforms}
     assert {"shoulder_link", "tool0"} <= children  # named as the URDF's links
 
@@ -325,7 +336,7 @@ def _trajectory(names, points):
 
 
 def _sim_time(client) -> float:
-    c = _collect(client, "/clock", "rosgraph_msgs/msg/Clock", 0.05)[-1][0]
+    c = _last(client, "/clock", "rosgraph_msgs/msg/Clock")
     return c.clock.sec + c.clock.nanosec * 1e-9
 
 
@@ -497,7 +508,7 @@ def test_velocity_and_effort_groups_drive_their_actuators(tmp_path):
         send("forward_velocity_controller", [0.5])
         send("forward_effort_controller", [5.0])  # the motor's range is -2..2: clipped
         _wait_sim(client, 1.0)
-        js = _collect(client, "/joint_states", "sensor_msgs/msg/JointState", 0.15)[-1][0]
+        js = _last(client, "/joint_states", "sensor_msgs/msg/JointState")
         assert list(js.name) == ["j1", "j2", "j3"]
         assert js.velocity[1] == pytest.approx(0.5, abs=0.05), (
             list(js.velocity),
@@ -556,3 +567,32 @@ def test_the_bringups_controllers_file_names_the_controllers(robot, tmp_path):
     finally:
         client.close()
         s.stop()
+
+
+def test_the_imu_and_the_force_torque_sensor_are_published(client, robot):
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+    mujoco.mj_forward(m, d)
+    site = m.site("imu_link").id
+    imu = _last(client, "/imu_link/imu", "sensor_msgs/msg/Imu")
+    assert imu.header.frame_id == "imu_link"
+    q = imu.orientation
+    # the IMU is fixed to the base: its orientation is the site's in the world
+    np.testing.assert_allclose(
+        np.abs(np.dot([q.w, q.x, q.y, q.z], _site_quat(d, site))), 1.0, atol=1e-6
+    )
+    a = imu.linear_acceleration
+    assert math.hypot(a.x, a.y, a.z) == pytest.approx(9.81, abs=0.05)  # standing still
+    ft = _last(client, "/ft_frame/wrench", "geometry_msgs/msg/WrenchStamped")
+    assert ft.header.frame_id == "ft_frame"
+    f = ft.wrench.force
+    # held still: the sensor carries the weight of everything beyond it
+    beyond = m.body_subtreemass[m.site_bodyid[m.site("ft_frame").id]]
+    assert math.hypot(f.x, f.y, f.z) == pytest.approx(beyond * 9.81, rel=0.05)
+
+
+def _site_quat(d, site: int) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, d.site_xmat[site])
+    return q

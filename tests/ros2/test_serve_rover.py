@@ -16,8 +16,8 @@ zenoh = pytest.importorskip("zenoh")
 from tests.ros2.test_serve_e2e import (  # noqa: E402
     STORE,
     Served,
-    _collect,
     _free_port,
+    _last,
     _publish,
     _session,
     _tokens,
@@ -59,14 +59,13 @@ def _twist(v: float, w: float):
 
 
 def _odom(client):
-    return _collect(client, "/rover/odom", "nav_msgs/msg/Odometry", 0.1)[-1][0]
+    return _last(client, "/rover/odom", "nav_msgs/msg/Odometry")
 
 
 def _base_xy(client) -> tuple[float, float]:
-    for msg, _ in reversed(_collect(client, "/tf", "tf2_msgs/msg/TFMessage", 0.1)):
-        for t in msg.transforms:
-            if t.child_frame_id == "base_link":
-                return t.transform.translation.x, t.transform.translation.y
+    for t in _last(client, "/tf", "tf2_msgs/msg/TFMessage").transforms:
+        if t.child_frame_id == "base_link":
+            return t.transform.translation.x, t.transform.translation.y
     raise AssertionError("no base_link in /tf")
 
 
@@ -94,7 +93,7 @@ def test_the_rover_is_under_its_namespace(client):
     } <= endpoints
     # the wheels and the arm are the rover's: no forward group takes them
     assert not any(topic.startswith("/forward_velocity") for _, topic in endpoints)
-    imu = _collect(client, "/rover/imu", "sensor_msgs/msg/Imu", 0.2)[-1][0]
+    imu = _last(client, "/rover/imu", "sensor_msgs/msg/Imu")
     q = imu.orientation
     assert math.isclose(q.x**2 + q.y**2 + q.z**2 + q.w**2, 1.0, abs_tol=1e-6)
     assert imu.linear_acceleration.z == pytest.approx(9.81, abs=0.5)  # standing on the floor

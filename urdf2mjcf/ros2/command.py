@@ -180,7 +180,7 @@ def serve_command(
             )
             or "no controllers"
         )
-        rovers = getattr(server.extensions[0], "driven", {}) if server.extensions else {}
+        rovers: dict = next((e.driven for e in server.extensions if hasattr(e, "driven")), {})
         if rovers:
             groups += "; rovers " + ", ".join(f"/{r}/cmd_vel" for r in rovers)
         click.echo(

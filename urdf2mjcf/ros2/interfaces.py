@@ -35,6 +35,8 @@ MESSAGES: dict[str, str] = {
     "geometry_msgs/msg/TransformStamped": (
         "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform"
     ),
+    "geometry_msgs/msg/Wrench": "geometry_msgs/Vector3 force\ngeometry_msgs/Vector3 torque",
+    "geometry_msgs/msg/WrenchStamped": "std_msgs/Header header\ngeometry_msgs/Wrench wrench",
     "tf2_msgs/msg/TFMessage": "geometry_msgs/TransformStamped[] transforms",
     "sensor_msgs/msg/JointState": (
         "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\n"

@@ -1,10 +1,12 @@
-"""What a path serves: a model file, or a facility bundle with its rovers."""
+"""What a path serves: a model file with its IMUs and force-torque sensors, or a
+facility bundle, with its rovers if it has any (each rover's IMU on its own topic)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..errors import ConversionError
+from .sensors import Sensors
 from .server import ServeConfig, Server
 
 
@@ -15,13 +17,14 @@ def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Serv
     from ..mjcf_input import load_model
 
     if not (path.is_dir() or (path.parent / "facility.json").is_file()):
-        return Server(load_model(path, error=error, what="model"), config)
+        m = load_model(path, error=error, what="model")
+        return Server(m, config, extensions=(Sensors(m),))
     from ..runner.load import open_facility
     from ..runner.rover.roles import find_rovers
 
     _, _, manifest, m, d = open_facility(path)
     if not find_rovers(m, manifest):
-        return Server(m, config, d)
+        return Server(m, config, d, extensions=(Sensors(m),))
     from ..runner.rover.sim import RoverSim
     from .rovers import Rovers
 
