@@ -226,7 +226,15 @@ class Server:
                 fut.set_exception(exc)
 
         self._inbox.put(run)
-        return fut.result(timeout)
+        # in slices: a call that lands as the server stops must not hold Zenoh's thread
+        # (and so the session's close) for its whole timeout
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                return fut.result(min(0.1, max(0.0, deadline - time.monotonic())))
+            except FutureTimeout:
+                if self.stop.is_set() or time.monotonic() >= deadline:
+                    raise
 
     def post(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the simulation thread, before its next step."""
@@ -297,7 +305,10 @@ class Server:
             self.paused = bool(req["paused"])
             return {"success": True, "message": "paused" if self.paused else "running"}
 
-        return self.submit(run)
+        try:
+            return self.submit(run)
+        except FutureTimeout:
+            return {"success": False, "message": "timed out"}
 
     def step_simulation(self, req: dict[str, Any]) -> dict[str, Any]:
         steps = int(req["steps"])
@@ -350,7 +361,10 @@ class Server:
             "position": list(js.get("position", [])),
             "velocity": list(js.get("velocity", [])),
         }
-        self.submit(lambda: self.reset(key, overrides if names else None))
+        try:
+            self.submit(lambda: self.reset(key, overrides if names else None))
+        except FutureTimeout:
+            return {"success": False, "message": "timed out"}
         return {
             "success": True,
             "message": f"reset to {'keyframe ' + repr(name) if name else 'the start'}",
