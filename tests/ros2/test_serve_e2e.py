@@ -596,3 +596,38 @@ def _site_quat(d, site: int) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, d.site_xmat[site])
     return q
+
+
+def test_cameras_are_rendered_as_mujoco_renders_them(robot):
+    from urdf2mjcf import headless
+
+    if headless.gl_context_error():
+        pytest.skip(f"no offscreen OpenGL here: {headless.gl_context_error()}")
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    cam = 0
+    name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_CAMERA, cam)
+    w, h = (int(v) for v in m.cam_resolution[cam])
+    s = Served(robot, _free_port(), "--camera-rate", "5")
+    client = _session(s.port)
+    try:
+        image = _last(client, f"/{name}/image_raw", "sensor_msgs/msg/Image")
+        info = _last(client, f"/{name}/camera_info", "sensor_msgs/msg/CameraInfo")
+    finally:
+        client.close()
+        s.stop()
+    assert (image.height, image.width, image.encoding, image.step) == (h, w, "rgb8", 3 * w)
+    assert image.header.frame_id == name == info.header.frame_id
+    # the pinhole MuJoCo renders: f = (h / 2) / tan(fovy / 2), centre at ((w-1)/2, (h-1)/2)
+    f = (h / 2) / math.tan(math.radians(m.cam_fovy[cam]) / 2)
+    np.testing.assert_allclose(
+        np.reshape(info.k, (3, 3)), [[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]]
+    )
+    # the arm held at home: the image is MuJoCo's own render of that state
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+    mujoco.mj_forward(m, d)
+    with mujoco.Renderer(m, h, w) as r:
+        r.update_scene(d, camera=cam)
+        ours = r.render().astype(float)
+    theirs = np.frombuffer(bytes(image.data), np.uint8).reshape(h, w, 3).astype(float)
+    assert np.mean(np.abs(ours - theirs)) < 3.0

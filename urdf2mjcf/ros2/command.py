@@ -111,6 +111,14 @@ def _default_domain() -> int:
     help="The node's name; its services are /NAME/reset_world, set_pause, step_simulation.",
 )
 @click.option(
+    "--camera-rate",
+    type=FiniteFloat(0.0, 100.0),
+    default=0.0,
+    show_default=True,
+    help="Hz (simulated time) each camera of the model is rendered at, to "
+    "/<camera>/image_raw and /<camera>/camera_info; 0: none.",
+)
+@click.option(
     "--controllers",
     type=click.Path(path_type=Path, exists=True, dir_okay=False),
     help="ros2_control's controller_manager YAML (the bringup's controllers.yaml): its "
@@ -128,6 +136,7 @@ def serve_command(
     pace: float,
     rate: float,
     node_name: str,
+    camera_rate: float,
     controllers: Path | None,
     verbose: int,
 ) -> None:
@@ -161,6 +170,7 @@ def serve_command(
         pace=pace,
         rate=rate,
         controllers=controllers,
+        camera_rate=camera_rate,
     )
     served = build(model, config, ServeError)
 

@@ -53,6 +53,8 @@ class ServeConfig:
     """Simulated seconds per wall-clock second."""
     rate: float = 100.0
     """Hz of /clock, /joint_states and /tf, in simulated time."""
+    camera_rate: float = 0.0
+    """Hz (simulated time) each camera is rendered at; 0: none."""
     controllers: Path | None = None
     """ros2_control's controller_manager YAML (:mod:`.controller_file`); None: a
     forward controller per actuator kind and a trajectory controller over the

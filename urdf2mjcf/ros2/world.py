@@ -4,10 +4,11 @@ facility bundle, with its rovers if it has any (each rover's IMU on its own topi
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConversionError
 from .sensors import Sensors
-from .server import ServeConfig, Server
+from .server import Extension, ServeConfig, Server
 
 
 def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Server:
@@ -18,15 +19,29 @@ def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Serv
 
     if not (path.is_dir() or (path.parent / "facility.json").is_file()):
         m = load_model(path, error=error, what="model")
-        return Server(m, config, extensions=(Sensors(m),))
+        return Server(m, config, extensions=(Sensors(m), *_cameras(m, config)))
     from ..runner.load import open_facility
     from ..runner.rover.roles import find_rovers
 
     _, _, manifest, m, d = open_facility(path)
     if not find_rovers(m, manifest):
-        return Server(m, config, d, extensions=(Sensors(m),))
+        return Server(m, config, d, extensions=(Sensors(m), *_cameras(m, config)))
     from ..runner.rover.sim import RoverSim
     from .rovers import Rovers
 
     sim = RoverSim(path)
-    return Server(sim.m, config, sim.d, step=lambda: sim.step(1), extensions=(Rovers(sim),))
+    return Server(
+        sim.m,
+        config,
+        sim.d,
+        step=lambda: sim.step(1),
+        extensions=(Rovers(sim), *_cameras(sim.m, config)),
+    )
+
+
+def _cameras(m: Any, config: ServeConfig) -> tuple[Extension, ...]:
+    if config.camera_rate <= 0 or m.ncam == 0:
+        return ()
+    from .cameras import Cameras
+
+    return (Cameras(m, config.camera_rate),)
