@@ -631,3 +631,31 @@ def test_cameras_are_rendered_as_mujoco_renders_them(robot):
         ours = r.render().astype(float)
     theirs = np.frombuffer(bytes(image.data), np.uint8).reshape(h, w, 3).astype(float)
     assert np.mean(np.abs(ours - theirs)) < 3.0
+
+
+def test_through_a_zenoh_router_as_rmw_zenohd_runs_one(robot):
+    # rmw_zenoh's deployment: a router (rmw_zenohd: mode router, tcp/[::]:7447 there; a
+    # free loopback port here), the server and a ROS node both connecting to it
+    port = _free_port()
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"router"')
+    conf.insert_json5("listen/endpoints", f'["tcp/127.0.0.1:{port}"]')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    router = zenoh.open(conf)
+    proc = subprocess.Popen(
+        _command("serve", str(robot), "--ros2", "--zenoh-connect", f"tcp/127.0.0.1:{port}"),
+        env=_env(),
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    client = _session(port)
+    try:
+        tokens = _tokens(client)
+        assert [t[8] for t in tokens if t[5] == "NN"] == ["ros2_control_node"]
+        assert _last(client, "/joint_states", "sensor_msgs/msg/JointState").name
+    finally:
+        client.close()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(10)
+        router.close()
+    assert "connecting to tcp/127.0.0.1:" in proc.stderr.read()
