@@ -9,6 +9,7 @@ import math
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 zenoh = pytest.importorskip("zenoh")
@@ -124,3 +125,20 @@ def test_the_latched_estop_stops_it_until_released(client):
     _drive(client, 0.3, 1.0)
     x2, y2 = _base_xy(client)
     assert math.hypot(x2 - x1, y2 - y1) > 0.05
+
+
+def test_the_rovers_arm_follows_its_trajectory_controller(client):
+    from tests.ros2.test_serve_e2e import _positions, _trajectory, _wait_sim
+
+    _estop(client, False)
+    names = ["ur_shoulder_pan_joint", "ur_elbow_joint"]
+    start = _positions(client, names)
+    goal = start + np.array([0.3, -0.2])
+    _publish(
+        client,
+        "/rover/arm_controller/joint_trajectory",
+        "trajectory_msgs/msg/JointTrajectory",
+        _trajectory(names, [(1.0, list(goal))]),
+    )
+    _wait_sim(client, 2.0)
+    np.testing.assert_allclose(_positions(client, names), goal, atol=0.05)

@@ -3,7 +3,9 @@ Innok base is driven: ``/<rover>/cmd_vel`` (geometry_msgs/Twist: forward speed a
 rate, through the wheels, kept for CMD_VEL_TIMEOUT), ``/<rover>/odom``
 (nav_msgs/Odometry from the wheel encoders), ``/<rover>/imu`` (sensor_msgs/Imu) and an
 emergency stop ``/<rover>/estop`` (std_msgs/Bool: true latches it, as the console's:
-the wheels brake and hold and cmd_vel is ignored until a false releases it).
+the wheels brake and hold, the arm holds, and commands are ignored until a false
+releases it), and the arm's ``/<rover>/arm_controller/joint_trajectory``
+(trajectory_msgs/JointTrajectory, its joints named as the model names them).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import mujoco
 import numpy as np
 
 from ..runner.rover.sim import RoverSim
-from . import keyexpr
+from . import controllers, keyexpr
 from .server import Extension, Server, _time
 from .session import Node, Publisher
 
@@ -30,6 +32,30 @@ class _Driven:
         self.v = self.w = 0.0
         self.until = -math.inf
         self.estop = False
+        self.trajectory: controllers.Trajectory | None = None
+
+
+def _arm_group(m: mujoco.MjModel, name: str, acts: np.ndarray) -> controllers.Group:
+    """The rover's arm servos as the group its trajectory controller drives (joint names
+    without the rover's prefix, as the roles and the console give them)."""
+    joints = []
+    low, high = [], []
+    for a in acts:
+        j = int(m.actuator_trnid[a, 0])
+        joints.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or "")
+        lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
+        if m.actuator_ctrllimited[a]:
+            lo, hi = max(lo, m.actuator_ctrlrange[a, 0]), min(hi, m.actuator_ctrlrange[a, 1])
+        low.append(lo)
+        high.append(hi)
+    return controllers.Group(
+        f"{name}/arm_controller",
+        "position",
+        tuple(joints),
+        tuple(int(a) for a in acts),
+        np.array(low),
+        np.array(high),
+    )
 
 
 class Rovers(Extension):
@@ -40,6 +66,7 @@ class Rovers(Extension):
         for r in sim.rovers.values():
             acts.update(int(a) for a in (*r.left, *r.right, *r.arm))
         self.actuators = frozenset(acts)
+        self.arms = {n: _arm_group(sim.m, n, r.arm) for n, r in sim.rovers.items() if len(r.arm)}
         sim.sim.control.append(self._control)
 
     def open(self, node: Node, server: Server) -> None:
@@ -58,6 +85,12 @@ class Rovers(Extension):
                 functools.partial(self._on_estop, name),
                 qos=keyexpr.LATCHED,
             )
+            if name in self.arms:
+                node.subscribe(
+                    f"/{name}/arm_controller/joint_trajectory",
+                    "trajectory_msgs/msg/JointTrajectory",
+                    functools.partial(self._on_arm_trajectory, name),
+                )
             self._odom[name] = node.publisher(f"/{name}/odom", "nav_msgs/msg/Odometry")
             self._imu[name] = node.publisher(f"/{name}/imu", "sensor_msgs/msg/Imu")
 
@@ -76,6 +109,22 @@ class Rovers(Extension):
 
         self.server.post(apply)
 
+    def _on_arm_trajectory(self, name: str, msg: dict[str, Any]) -> None:
+        group = self.arms[name]
+
+        def start() -> None:
+            c = self.driven[name]
+            if c.estop:
+                self.server.warn.drop(f"/{name}/arm_controller", "emergency stop latched")
+                return
+            current = self.sim.arm_targets[name].copy()
+            try:
+                c.trajectory = controllers.trajectory(group, msg, self.sim.d.time, current)
+            except controllers.BadCommand as exc:
+                self.server.warn.drop(f"/{name}/arm_controller joint_trajectory", str(exc))
+
+        self.server.post(start)
+
     def _on_estop(self, name: str, msg: dict[str, Any]) -> None:
         on = bool(msg["data"])
         self.server.post(lambda: self._set_estop(name, on))
@@ -84,6 +133,7 @@ class Rovers(Extension):
         c = self.driven[name]
         if on and not c.estop:
             c.v = c.w = 0.0
+            c.trajectory = None
             targets = self.sim.arm_targets[name]
             targets[:] = self.sim.d.qpos[self.sim.rovers[name].arm_qpos]  # the arm holds
         c.estop = on
@@ -93,6 +143,13 @@ class Rovers(Extension):
         t = self.sim.d.time
         for name, r in self.sim.rovers.items():
             c = self.driven[name]
+            if c.trajectory is not None:  # the arm's targets along it, clipped to range
+                g = self.arms[name]
+                cols = list(c.trajectory.columns)
+                targets = self.sim.arm_targets[name]
+                targets[cols] = np.clip(c.trajectory.sample(t), g.low[cols], g.high[cols])
+                if t > c.trajectory.end:
+                    c.trajectory = None
             if c.estop or t > c.until or (c.v == 0.0 and c.w == 0.0):
                 self.sim.brake(r)
             else:
