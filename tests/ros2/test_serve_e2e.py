@@ -659,3 +659,19 @@ def test_through_a_zenoh_router_as_rmw_zenohd_runs_one(robot):
         proc.wait(10)
         router.close()
     assert "connecting to tcp/127.0.0.1:" in proc.stderr.read()
+
+
+def test_the_lidar_is_a_laser_scan_as_its_gazebo_tag_says(client, robot):
+    # the test arm's Gazebo ray sensor: samples:=3 from -pi/2 to pi/2, range 10 m
+    scan = _last(client, "/laser_link/scan", "sensor_msgs/msg/LaserScan")
+    assert scan.header.frame_id == "laser_link"
+    assert scan.angle_min == pytest.approx(-math.pi / 2, abs=1e-6)
+    assert scan.angle_increment == pytest.approx(math.pi / 2, abs=1e-6)
+    assert scan.range_max == pytest.approx(10.0)
+    m = mujoco.MjModel.from_xml_path(str(robot))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+    mujoco.mj_forward(m, d)
+    ours = [d.sensor(f"laser_link_ray_{k}").data[0] for k in range(3)]
+    expect = [math.inf if r < 0 else r for r in ours]
+    np.testing.assert_allclose(scan.ranges, expect, atol=1e-3)

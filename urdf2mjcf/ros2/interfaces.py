@@ -54,6 +54,11 @@ MESSAGES: dict[str, str] = {
         "float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n"
         "uint32 binning_y\nsensor_msgs/RegionOfInterest roi"
     ),
+    "sensor_msgs/msg/LaserScan": (
+        "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\n"
+        "float32 time_increment\nfloat32 scan_time\nfloat32 range_min\nfloat32 range_max\n"
+        "float32[] ranges\nfloat32[] intensities"
+    ),
     "sensor_msgs/msg/Imu": (
         "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\n"
         "float64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\n"

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConversionError
+from .scans import Scans
 from .sensors import Sensors
 from .server import Extension, ServeConfig, Server
 
@@ -19,13 +20,13 @@ def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Serv
 
     if not (path.is_dir() or (path.parent / "facility.json").is_file()):
         m = load_model(path, error=error, what="model")
-        return Server(m, config, extensions=(Sensors(m), *_cameras(m, config)))
+        return Server(m, config, extensions=(Sensors(m), Scans(m), *_cameras(m, config)))
     from ..runner.load import open_facility
     from ..runner.rover.roles import find_rovers
 
     _, _, manifest, m, d = open_facility(path)
     if not find_rovers(m, manifest):
-        return Server(m, config, d, extensions=(Sensors(m), *_cameras(m, config)))
+        return Server(m, config, d, extensions=(Sensors(m), Scans(m), *_cameras(m, config)))
     from ..runner.rover.sim import RoverSim
     from .rovers import Rovers
 
