@@ -5,8 +5,10 @@ Published: ``/clock`` (simulated time), ``/joint_states`` and
 effort), ``/tf`` (the frames a joint moves, each body named as the URDF's link, in
 its parent's frame) and ``/tf_static`` (the others, latched). Taken: the forward
 controllers' ``/<group>/commands`` and ``/joint_trajectory_controller/joint_trajectory``
-(:mod:`.controllers`). Services of the node: ``~/reset_world``, ``~/set_pause``,
-``~/step_simulation``, with mujoco_ros2_control's types and meaning.
+(:mod:`.controllers`), or those a controllers file names (:mod:`.controller_file`).
+Services of the node: ``~/reset_world``, ``~/set_pause``, ``~/step_simulation``, with
+mujoco_ros2_control's types and meaning. What a world adds (sensors, scans, cameras,
+rovers) comes in as an :class:`Extension`.
 
 One thread owns MuJoCo: it steps, applies the commands the Zenoh callbacks queued
 and publishes; a service call waits for its answer from that thread.
@@ -102,7 +104,8 @@ class _Frames:
 
 
 class Extension:
-    """What a served world adds to the robot's interface (the rovers'): its endpoints,
+    """What a served world adds to the robot's interface (sensors, scans, cameras,
+    rovers): its endpoints,
     its actuators (left out of the forward groups), and hooks into the loop, all run
     in the simulation thread but :meth:`open`."""
 
