@@ -675,3 +675,35 @@ def test_the_lidar_is_a_laser_scan_as_its_gazebo_tag_says(client, robot):
     ours = [d.sensor(f"laser_link_ray_{k}").data[0] for k in range(3)]
     expect = [math.inf if r < 0 else r for r in ours]
     np.testing.assert_allclose(scan.ranges, expect, atol=1e-3)
+
+
+def test_the_ros_domain_is_in_every_key(robot):
+    port = _free_port()
+    proc = subprocess.Popen(
+        _command("serve", str(robot), "--ros2", "--zenoh-listen", f"tcp/127.0.0.1:{port}"),
+        env={**_env(), "ROS_DOMAIN_ID": "7"},
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    client = _session(port)
+    try:
+        deadline = time.monotonic() + 20
+        found: list[str] = []
+        while not found and time.monotonic() < deadline:
+            found = [str(r.ok.key_expr) for r in client.liveliness().get("@ros2_lv/**") if r.ok]
+            time.sleep(0.1)
+        assert found and all(k.startswith("@ros2_lv/7/") for k in found)
+        got: list[bytes] = []
+        key = "7/clock/rosgraph_msgs::msg::dds_::Clock_/" + STORE.hash_rihs01(
+            "rosgraph_msgs/msg/Clock"
+        )
+        sub = client.declare_subscriber(key, lambda s: got.append(s.payload.to_bytes()))
+        other = client.declare_subscriber("0/**", lambda s: got.append(b"domain 0"))
+        time.sleep(0.5)
+        sub.undeclare()
+        other.undeclare()
+        assert got and b"domain 0" not in got
+    finally:
+        client.close()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(10)
