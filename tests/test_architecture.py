@@ -43,6 +43,8 @@ def _layer(module: str) -> str:
     head = parts[1]
     if head in ("passes", "facility", "runner", "envs"):  # envs: Gymnasium over facility, runner
         return head
+    if head == "ros2":  # the ROS 2 server: runs what runner/ loads; serve is a command
+        return "cli" if parts[-1] == "command" else "runner"
     if head in ("api", "report"):
         return "api"
     if head == "certify":  # the certificate runs after the passes, beside api; verify is a command

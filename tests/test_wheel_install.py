@@ -68,8 +68,8 @@ placements:
 # The sim extra as pyproject.toml names it, and what the other extras bring that a
 # converter must never import.
 SIM = {"mink", "ompl", "toppra", "opencv-python-headless", "matplotlib"}
-NOT_CORE = SIM | {"ray", "gymnasium"}
-REFUSED = ("mink", "ompl", "toppra", "cv2", "matplotlib", "ray", "gymnasium")
+NOT_CORE = SIM | {"ray", "gymnasium", "eclipse-zenoh"}
+REFUSED = ("mink", "ompl", "toppra", "cv2", "matplotlib", "ray", "gymnasium", "zenoh")
 """Import names refused in the venv without extras (cv2: opencv-python-headless)."""
 REFUSE_FINDER = """import sys
 from importlib.machinery import PathFinder
@@ -326,7 +326,7 @@ def test_the_core_dependencies_leave_the_demo_stack_to_the_sim_extra(wheel):
     assert {Requirement(s).name for s in by_extra["sim"]} == SIM
     # `pip install '.[test]'` (.ci/run) must still run the demo's tests: test holds all of sim.
     assert by_extra["sim"] <= by_extra["test"], sorted(by_extra["sim"] - by_extra["test"])
-    for extra in ("ray", "ros", "gym", "verify"):
+    for extra in ("ray", "ros", "gym", "verify", "ros2"):
         assert by_extra[extra]
     # The check the commands make (urdf2mjcf.extras) knows each module the extra installs.
     from importlib.metadata import packages_distributions

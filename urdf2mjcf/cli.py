@@ -191,7 +191,8 @@ def urdf2mjcf_command(
 
     Many robots into one tree: 'urdf2mjcf batch PATHS... -o OUT' (see its --help).
     The cache: 'urdf2mjcf cache info|clear'. Any model against its description:
-    'urdf2mjcf verify SOURCE MODEL.xml' (see its --help).
+    'urdf2mjcf verify SOURCE MODEL.xml' (see its --help). A model served live to
+    ROS 2: 'urdf2mjcf serve MODEL.xml --ros2' (see its --help).
     """
     from . import api  # keep `--help` fast
     from . import output as out
@@ -355,9 +356,10 @@ view_command = click.Command(
 
 def urdf2mjcf_main() -> None:
     # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
-    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one; anything
-    # else is a conversion, whose first argument is the SOURCE file (a file named 'cache',
-    # 'batch', 'verify' or 'view' is given as ./cache, ./batch, ./verify, ./view).
+    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one,
+    # `urdf2mjcf serve ...` serves one to ROS 2; anything else is a conversion, whose first
+    # argument is the SOURCE file (a file named 'cache', 'batch', 'verify', 'view' or
+    # 'serve' is given as ./cache, ./batch, ./verify, ./view, ./serve).
     args = sys.argv[1:]
     if args[:1] == ["view"]:
         run_command(view_command, args[1:], prog_name="urdf2mjcf view")
@@ -367,6 +369,10 @@ def urdf2mjcf_main() -> None:
         from .batch import batch_command
 
         run_command(batch_command, args[1:], prog_name="urdf2mjcf batch")
+    if args[:1] == ["serve"]:
+        from .ros2.command import serve_command
+
+        run_command(serve_command, args[1:], prog_name="urdf2mjcf serve")
     if args[:1] == ["verify"]:
         from .certify.command import verify_command
 

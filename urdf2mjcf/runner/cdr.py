@@ -159,3 +159,99 @@ def encoder(datatype: str, definition: str) -> Callable[[Any], bytes]:
         return bytes(buf)
 
     return encode
+
+
+# -- reading: what a subscriber or a service server takes in ------------------------------
+
+Decoder = Callable[[memoryview, int], tuple[Any, int]]
+
+
+def _read_align(offset: int, size: int) -> int:
+    return offset + (-(offset - len(HEADER)) % size)
+
+
+def _read_scalar(kind: str, package: str, types: dict, cache: dict[str, Decoder]) -> Decoder:
+    if kind in _PRIMITIVES:
+        s = struct.Struct("<" + _PRIMITIVES[kind])
+
+        def primitive(buf: memoryview, at: int) -> tuple[Any, int]:
+            at = _read_align(at, s.size)
+            return s.unpack_from(buf, at)[0], at + s.size
+
+        return primitive
+    if kind == "string":
+
+        def string(buf: memoryview, at: int) -> tuple[Any, int]:
+            at = _read_align(at, 4)
+            (n,) = struct.unpack_from("<I", buf, at)
+            at += 4
+            if n == 0 or at + n > len(buf) or buf[at + n - 1] != 0:
+                raise ValueError("a string without its terminating NUL")
+            return bytes(buf[at : at + n - 1]).decode(), at + n
+
+        return string
+    full = kind if "/" in kind else f"{package}/{kind}"
+    if full not in cache:
+        cache[full] = _read_message(full, types, cache)
+    return lambda buf, at: cache[full](buf, at)
+
+
+def _read_field(kind: str, package: str, types: dict, cache: dict[str, Decoder]) -> Decoder:
+    m = _ARRAY.match(kind)
+    if m is None:
+        return _read_scalar(kind, package, types, cache)
+    item, size = m.group(1), m.group(2)
+    one = _read_scalar(item, package, types, cache)
+    width = struct.calcsize("<" + _PRIMITIVES[item]) if item in _PRIMITIVES else 0
+
+    def array(buf: memoryview, at: int) -> tuple[Any, int]:
+        if size:
+            n = int(size)
+        else:
+            at = _read_align(at, 4)
+            (n,) = struct.unpack_from("<I", buf, at)
+            at += 4
+        if width and _read_align(at, width) + n * width > len(buf):  # more than it holds
+            raise ValueError(f"{kind}: {n} values in {len(buf)} bytes")
+        out = []
+        for _ in range(n):
+            v, at = one(buf, at)
+            out.append(v)
+        return out, at
+
+    return array
+
+
+def _read_message(name: str, types: dict, cache: dict[str, Decoder]) -> Decoder:
+    package = name.split("/")[0]
+    fields = [(f, _read_field(kind, package, types, cache)) for kind, f, _ in types[name]]
+
+    def message(buf: memoryview, at: int) -> tuple[Any, int]:
+        out = {}
+        for f, dec in fields:
+            out[f], at = dec(buf, at)
+        return out, at
+
+    return message
+
+
+def decoder(datatype: str, definition: str) -> Callable[[bytes], dict[str, Any]]:
+    """Decoder of ``datatype`` messages in little-endian CDR (what :func:`encoder`
+    writes, and what a ROS 2 publisher sends), each to a dict of its fields; a payload
+    that is not one (big-endian, cut short) raises ValueError."""
+    pkg, _, name = datatype.split("/")
+    main = f"{pkg}/{name}"
+    types = _parse(definition, main)
+    cache: dict[str, Decoder] = {}
+    top = _read_message(main, types, cache)
+
+    def decode(payload: bytes) -> dict[str, Any]:
+        if payload[:2] != HEADER[:2]:
+            raise ValueError(f"not little-endian CDR (header {payload[:4].hex()})")
+        try:
+            msg, _ = top(memoryview(payload), len(HEADER))
+        except (struct.error, UnicodeDecodeError, IndexError) as exc:
+            raise ValueError(f"{datatype}: {exc}") from None
+        return msg
+
+    return decode

@@ -1,0 +1,144 @@
+"""``urdf2mjcf serve BUNDLE --ros2`` of a MIRA3D bundle: the rover under its namespace,
+driven with geometry_msgs/Twist and stopped by its latched emergency stop, watched by
+an independent Zenoh session decoding with rosbags; the odometry against the base's
+true motion as /tf reports MuJoCo's state."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+zenoh = pytest.importorskip("zenoh")
+
+from tests.ros2.test_serve_e2e import (  # noqa: E402
+    STORE,
+    Served,
+    _free_port,
+    _last,
+    _publish,
+    _session,
+    _tokens,
+)
+from urdf2mjcf.facility.build import build_facility  # noqa: E402
+from urdf2mjcf.facility.recipe import load_recipe  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def rover_world(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("ros2") / "mira3d-floor"
+    build_facility(
+        load_recipe(ROOT / "recipes" / "mira3d-floor.yaml"), out, root=ROOT, components=False
+    )
+    return out
+
+
+@pytest.fixture(scope="module")
+def served(rover_world):
+    s = Served(rover_world, _free_port())
+    yield s
+    if s.proc.poll() is None:
+        s.stop()
+
+
+@pytest.fixture(scope="module")
+def client(served):
+    session = _session(served.port)
+    yield session
+    session.close()
+
+
+def _twist(v: float, w: float):
+    T = STORE.types
+    V = T["geometry_msgs/msg/Vector3"]
+    return T["geometry_msgs/msg/Twist"](linear=V(x=v, y=0.0, z=0.0), angular=V(x=0.0, y=0.0, z=w))
+
+
+def _odom(client):
+    return _last(client, "/rover/odom", "nav_msgs/msg/Odometry")
+
+
+def _base_xy(client) -> tuple[float, float]:
+    for t in _last(client, "/tf", "tf2_msgs/msg/TFMessage").transforms:
+        if t.child_frame_id == "base_link":
+            return t.transform.translation.x, t.transform.translation.y
+    raise AssertionError("no base_link in /tf")
+
+
+def _drive(client, v: float, seconds: float) -> None:
+    """Twist at 10 Hz for ``seconds`` of wall time (cmd_vel lapses after 0.5 s)."""
+    end = time.monotonic() + seconds
+    seq = 0
+    while time.monotonic() < end:
+        seq += 1
+        _publish(client, "/rover/cmd_vel", "geometry_msgs/msg/Twist", _twist(v, 0.0), seq=seq)
+        time.sleep(0.1)
+
+
+def _estop(client, on: bool) -> None:
+    _publish(client, "/rover/estop", "std_msgs/msg/Bool", STORE.types["std_msgs/msg/Bool"](data=on))
+
+
+def test_the_rover_is_under_its_namespace(client):
+    endpoints = {(t[5], t[9].replace("%", "/")) for t in _tokens(client) if len(t) == 13}
+    assert {
+        ("MS", "/rover/cmd_vel"),
+        ("MS", "/rover/estop"),
+        ("MP", "/rover/odom"),
+        ("MP", "/rover/imu"),
+    } <= endpoints
+    # the wheels and the arm are the rover's: no forward group takes them
+    assert not any(topic.startswith("/forward_velocity") for _, topic in endpoints)
+    imu = _last(client, "/rover/imu", "sensor_msgs/msg/Imu")
+    q = imu.orientation
+    assert math.isclose(q.x**2 + q.y**2 + q.z**2 + q.w**2, 1.0, abs_tol=1e-6)
+    assert imu.linear_acceleration.z == pytest.approx(9.81, abs=0.5)  # standing on the floor
+
+
+def test_twist_drives_the_rover_and_the_odometry_follows_its_true_motion(client):
+    x0, y0 = _base_xy(client)
+    o0 = _odom(client).pose.pose.position
+    _drive(client, 0.3, 2.0)
+    x1, y1 = _base_xy(client)
+    o1 = _odom(client).pose.pose.position
+    moved = math.hypot(x1 - x0, y1 - y0)
+    assert moved > 0.15
+    assert math.hypot(o1.x - o0.x, o1.y - o0.y) == pytest.approx(moved, rel=0.15)
+    assert _odom(client).twist.twist.linear.x > 0.1
+
+
+def test_the_latched_estop_stops_it_until_released(client):
+    _drive(client, 0.3, 0.5)
+    _estop(client, True)
+    _drive(client, 0.3, 1.5)  # commands keep coming: the stop holds
+    x0, y0 = _base_xy(client)
+    _drive(client, 0.3, 0.5)
+    x1, y1 = _base_xy(client)
+    assert math.hypot(x1 - x0, y1 - y0) < 0.01
+    assert abs(_odom(client).twist.twist.linear.x) < 0.02
+    _estop(client, False)
+    _drive(client, 0.3, 1.0)
+    x2, y2 = _base_xy(client)
+    assert math.hypot(x2 - x1, y2 - y1) > 0.05
+
+
+def test_the_rovers_arm_follows_its_trajectory_controller(client):
+    from tests.ros2.test_serve_e2e import _positions, _trajectory, _wait_sim
+
+    _estop(client, False)
+    names = ["ur_shoulder_pan_joint", "ur_elbow_joint"]
+    start = _positions(client, names)
+    goal = start + np.array([0.3, -0.2])
+    _publish(
+        client,
+        "/rover/arm_controller/joint_trajectory",
+        "trajectory_msgs/msg/JointTrajectory",
+        _trajectory(names, [(1.0, list(goal))]),
+    )
+    _wait_sim(client, 2.0)
+    np.testing.assert_allclose(_positions(client, names), goal, atol=0.05)

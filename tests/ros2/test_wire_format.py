@@ -1,0 +1,170 @@
+"""rmw_zenoh's wire format against the strings its design document and REP-2016 give,
+and every type hash we use against rosbags' own implementation of REP-2016."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+
+from urdf2mjcf.ros2 import attachment, interfaces, keyexpr, liveliness, type_hash
+from urdf2mjcf.runner import cdr
+
+STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"
+
+
+@pytest.fixture
+def add_two_ints(monkeypatch):
+    # example_interfaces/srv/AddTwoInts, the design document's service
+    monkeypatch.setitem(
+        interfaces.SERVICES, "example_interfaces/srv/AddTwoInts", ("int64 a\nint64 b", "int64 sum")
+    )
+    return "example_interfaces/srv/AddTwoInts"
+
+
+def test_the_design_documents_key_expressions(add_two_ints):
+    assert keyexpr.data_keyexpr(0, "/chatter", "std_msgs/msg/String") == (
+        f"0/chatter/std_msgs::msg::dds_::String_/{STRING_HASH}"
+    )
+    assert keyexpr.data_keyexpr(0, "/robot1/chatter", "std_msgs/msg/String") == (
+        f"0/robot1/chatter/std_msgs::msg::dds_::String_/{STRING_HASH}"
+    )
+    assert keyexpr.data_keyexpr(2, "/add_two_ints", add_two_ints) == (
+        f"2/add_two_ints/example_interfaces::srv::dds_::AddTwoInts_/{ADD_TWO_INTS_HASH}"
+    )
+
+
+def test_the_design_documents_liveliness_tokens(add_two_ints):
+    listener = liveliness.Node(2, "aac3178e146ba6f1fc6e6a4085e77f21", "listener")
+    assert listener.token() == "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
+    assert listener.endpoint(10, "MS", "/chatter", "std_msgs/msg/String", keyexpr.QoS()) == (
+        "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/10/MS/%/%/listener/%chatter/"
+        f"std_msgs::msg::dds_::String_/{STRING_HASH}/::,10:,:,:,,"
+    )
+    talker = liveliness.Node(2, "8b20917502ee955ac4476e0266340d5c", "talker")
+    assert talker.endpoint(10, "MP", "/chatter", "std_msgs/msg/String", keyexpr.QoS(7)) == (
+        "@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/"
+        f"std_msgs::msg::dds_::String_/{STRING_HASH}/::,7:,:,:,,"
+    )
+    server = liveliness.Node(2, "f9980ee0495eaafb3e38f0d19e2eae12", "add_two_ints_server")
+    assert server.endpoint(10, "SS", "/add_two_ints", add_two_ints, keyexpr.QoS()) == (
+        "@ros2_lv/2/f9980ee0495eaafb3e38f0d19e2eae12/0/10/SS/%/%/add_two_ints_server/"
+        f"%add_two_ints/example_interfaces::srv::dds_::AddTwoInts_/{ADD_TWO_INTS_HASH}"
+        "/::,10:,:,:,,"
+    )
+
+
+def test_qos_is_written_only_where_it_differs_from_rmw_zenohs_default():
+    assert keyexpr.QoS(depth=42).keyexpr() == "::,:,:,:,,"
+    # /tf_static: transient local (1), depth 1; /clock: best effort (2), depth 1
+    assert keyexpr.LATCHED.keyexpr() == ":1:,1:,:,:,,"
+    assert keyexpr.CLOCK.keyexpr() == "2::,1:,:,:,,"
+
+
+def test_a_namespaced_node_and_its_token_read_back():
+    node = liveliness.Node(0, "ab12", "sim", namespace="/rover1")
+    token = node.endpoint(3, "MP", "/rover1/odom", "nav_msgs/msg/Odometry", keyexpr.QoS())
+    assert token.startswith("@ros2_lv/0/ab12/0/3/MP/%/%rover1/sim/%rover1%odom/")
+    e = liveliness.parse(token)
+    assert (e.namespace, e.node_name, e.topic, e.kind) == ("/rover1", "sim", "/rover1/odom", "MP")
+    assert e.type_hash == type_hash.type_hash("nav_msgs/msg/Odometry")
+    with pytest.raises(ValueError):
+        liveliness.parse("@ros2_lv/0/ab12/0/3/XX/%/%/sim")
+
+
+def test_names_that_are_not_fully_qualified_are_refused():
+    for bad in ("chatter", "/a//b", "/a/", "/a b"):
+        with pytest.raises(ValueError):
+            keyexpr.data_keyexpr(0, bad, "std_msgs/msg/String")
+
+
+def test_the_attachment_is_33_little_endian_bytes():
+    gid = bytes(range(16))
+    data = attachment.Attachment(7, 1_700_000_000_123_456_789, gid).encode()
+    assert len(data) == 33
+    assert data[:8] == struct.pack("<q", 7)
+    assert data[8:16] == struct.pack("<q", 1_700_000_000_123_456_789)
+    assert data[16] == 16 and data[17:] == gid
+    assert attachment.decode(data) == attachment.Attachment(7, 1_700_000_000_123_456_789, gid)
+    with pytest.raises(ValueError):
+        attachment.decode(data[:-1])
+    with pytest.raises(ValueError):
+        attachment.decode(data[:16] + b"\x0f" + gid)
+
+
+def test_the_design_documents_type_hashes_are_computed(add_two_ints):
+    assert type_hash.type_hash("std_msgs/msg/String") == STRING_HASH
+    assert type_hash.type_hash(add_two_ints) == ADD_TWO_INTS_HASH
+
+
+def _rosbags_store():
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    extra = {}
+    for name, text in interfaces.MESSAGES.items():
+        if name.startswith("mujoco_ros2_control_msgs/"):
+            extra.update(get_types_from_msg(text, name))
+    store.register(extra)
+    return store
+
+
+# rosbags reads a .msg file's char as IDL char (type id 13); rosidl makes it uint8 (3),
+# which the design document's AddTwoInts hash (its event message holds a
+# ServiceEventInfo with char[16] client_gid) confirms above.
+ROSBAGS_CHAR = {"service_msgs/msg/ServiceEventInfo"}
+
+
+@pytest.mark.parametrize("name", sorted(set(interfaces.MESSAGES) - ROSBAGS_CHAR))
+def test_every_message_types_hash_agrees_with_rosbags(name):
+    assert type_hash.type_hash(name) == _rosbags_store().hash_rihs01(name)
+
+
+@pytest.mark.parametrize("name", sorted(interfaces.SERVICES))
+def test_every_service_is_described_as_rosidl_describes_one(name):
+    desc = type_hash.description(name)
+    top = [(f["name"], f["type"]["nested_type_name"]) for f in desc["type_description"]["fields"]]
+    assert top == [
+        ("request_message", f"{name}_Request"),
+        ("response_message", f"{name}_Response"),
+        ("event_message", f"{name}_Event"),
+    ]
+    names = [d["type_name"] for d in desc["referenced_type_descriptions"]]
+    assert names == sorted(names)
+    assert {"service_msgs/msg/ServiceEventInfo", "builtin_interfaces/msg/Time"} <= set(names)
+    event = next(
+        d for d in desc["referenced_type_descriptions"] if d["type_name"].endswith("_Event")
+    )
+    # at most one request and one response: a bounded sequence (96) of a nested type (1)
+    assert [f["type"]["type_id"] for f in event["fields"]] == [1, 97, 97]
+    assert type_hash.type_hash(name).startswith("RIHS01_")
+
+
+def test_cdr_read_back_by_rosbags_and_rosbags_read_by_ours():
+    store = _rosbags_store()
+    name = "trajectory_msgs/msg/JointTrajectory"
+    msg = {
+        "header": {"stamp": {"sec": 3, "nanosec": 4}, "frame_id": "base"},
+        "joint_names": ["a", "b"],
+        "points": [{"positions": [0.5, -0.25], "time_from_start": {"sec": 1, "nanosec": 2}}],
+    }
+    data = cdr.encoder(name, interfaces.definition_text(name))(msg)
+    theirs = store.deserialize_cdr(data, name)
+    assert list(theirs.joint_names) == ["a", "b"]
+    assert list(theirs.points[0].positions) == [0.5, -0.25]
+    assert theirs.points[0].time_from_start.nanosec == 2
+    back = cdr.decoder(name, interfaces.definition_text(name))(store.serialize_cdr(theirs, name))
+    assert back["points"][0]["positions"] == [0.5, -0.25]
+    assert back["header"]["frame_id"] == "base"
+
+
+def test_cdr_that_is_cut_short_or_big_endian_is_refused():
+    name = "std_msgs/msg/Float64MultiArray"
+    enc = cdr.encoder(name, interfaces.definition_text(name))
+    dec = cdr.decoder(name, interfaces.definition_text(name))
+    data = enc({"data": [1.0, 2.0]})
+    assert dec(data)["data"] == [1.0, 2.0]
+    for bad in (data[:-3], b"\x00\x00\x00\x00" + data[4:], data[:12] + b"\xff\xff\xff\x7f"):
+        with pytest.raises(ValueError):
+            dec(bad)

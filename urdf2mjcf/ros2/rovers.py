@@ -1,0 +1,212 @@
+"""A MIRA3D bundle's rovers on ROS 2, each under its own namespace, as the real
+Innok base is driven: ``/<rover>/cmd_vel`` (geometry_msgs/Twist: forward speed and yaw
+rate, through the wheels, kept for CMD_VEL_TIMEOUT), ``/<rover>/odom``
+(nav_msgs/Odometry from the wheel encoders), ``/<rover>/imu`` (sensor_msgs/Imu) and an
+emergency stop ``/<rover>/estop`` (std_msgs/Bool: true latches it, as the console's:
+the wheels brake and hold, the arm holds, and commands are ignored until a false
+releases it), and the arm's ``/<rover>/arm_controller/joint_trajectory``
+(trajectory_msgs/JointTrajectory, its joints named as the model names them).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..runner.rover.sim import RoverSim
+from . import controllers, keyexpr
+from .server import Extension, Server, _time
+from .session import Node, Publisher
+
+CMD_VEL_TIMEOUT = 0.5
+"""Simulated seconds a Twist drives the wheels: a teleop that goes silent stops the
+rover (ros2_control's diff_drive_controller waits 0.5 s by default too)."""
+
+
+class _Driven:
+    def __init__(self) -> None:
+        self.v = self.w = 0.0
+        self.until = -math.inf
+        self.estop = False
+        self.trajectory: controllers.Trajectory | None = None
+
+
+def _arm_group(m: mujoco.MjModel, name: str, acts: np.ndarray) -> controllers.Group:
+    """The rover's arm servos as the group its trajectory controller drives (joint names
+    without the rover's prefix, as the roles and the console give them)."""
+    joints = []
+    low, high = [], []
+    for a in acts:
+        j = int(m.actuator_trnid[a, 0])
+        joints.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or "")
+        lo, hi = m.jnt_range[j] if m.jnt_limited[j] else (-np.inf, np.inf)
+        if m.actuator_ctrllimited[a]:
+            lo, hi = max(lo, m.actuator_ctrlrange[a, 0]), min(hi, m.actuator_ctrlrange[a, 1])
+        low.append(lo)
+        high.append(hi)
+    return controllers.Group(
+        f"{name}/arm_controller",
+        "position",
+        tuple(joints),
+        tuple(int(a) for a in acts),
+        np.array(low),
+        np.array(high),
+    )
+
+
+class Rovers(Extension):
+    def __init__(self, sim: RoverSim) -> None:
+        self.sim = sim
+        self.driven = {name: _Driven() for name in sim.rovers}
+        acts: set[int] = set()
+        for r in sim.rovers.values():
+            acts.update(int(a) for a in (*r.left, *r.right, *r.arm))
+        self.actuators = frozenset(acts)
+        self.arms = {n: _arm_group(sim.m, n, r.arm) for n, r in sim.rovers.items() if len(r.arm)}
+        sim.sim.control.append(self._control)
+
+    def open(self, node: Node, server: Server) -> None:
+        self.server = server
+        self._odom: dict[str, Publisher] = {}
+        self._imu: dict[str, Publisher] = {}
+        for name in self.sim.rovers:
+            node.subscribe(
+                f"/{name}/cmd_vel",
+                "geometry_msgs/msg/Twist",
+                functools.partial(self._on_twist, name),
+            )
+            node.subscribe(
+                f"/{name}/estop",
+                "std_msgs/msg/Bool",
+                functools.partial(self._on_estop, name),
+                qos=keyexpr.LATCHED,
+            )
+            if name in self.arms:
+                node.subscribe(
+                    f"/{name}/arm_controller/joint_trajectory",
+                    "trajectory_msgs/msg/JointTrajectory",
+                    functools.partial(self._on_arm_trajectory, name),
+                )
+            self._odom[name] = node.publisher(f"/{name}/odom", "nav_msgs/msg/Odometry")
+            self._imu[name] = node.publisher(f"/{name}/imu", "sensor_msgs/msg/Imu")
+
+    def _on_twist(self, name: str, msg: dict[str, Any]) -> None:
+        v, w = float(msg["linear"]["x"]), float(msg["angular"]["z"])
+        if not (math.isfinite(v) and math.isfinite(w)):
+            self.server.warn.drop(f"/{name}/cmd_vel", "a speed that is not a finite number")
+            return
+
+        def apply() -> None:
+            c = self.driven[name]
+            if c.estop:
+                self.server.warn.drop(f"/{name}/cmd_vel", "emergency stop latched")
+                return
+            c.v, c.w, c.until = v, w, self.sim.d.time + CMD_VEL_TIMEOUT
+
+        self.server.post(apply)
+
+    def _on_arm_trajectory(self, name: str, msg: dict[str, Any]) -> None:
+        group = self.arms[name]
+
+        def start() -> None:
+            c = self.driven[name]
+            if c.estop:
+                self.server.warn.drop(f"/{name}/arm_controller", "emergency stop latched")
+                return
+            current = self.sim.arm_targets[name].copy()
+            try:
+                c.trajectory = controllers.trajectory(group, msg, self.sim.d.time, current)
+            except controllers.BadCommand as exc:
+                self.server.warn.drop(f"/{name}/arm_controller joint_trajectory", str(exc))
+
+        self.server.post(start)
+
+    def _on_estop(self, name: str, msg: dict[str, Any]) -> None:
+        on = bool(msg["data"])
+        self.server.post(lambda: self._set_estop(name, on))
+
+    def _set_estop(self, name: str, on: bool) -> None:
+        c = self.driven[name]
+        if on and not c.estop:
+            c.v = c.w = 0.0
+            c.trajectory = None
+            targets = self.sim.arm_targets[name]
+            targets[:] = self.sim.d.qpos[self.sim.rovers[name].arm_qpos]  # the arm holds
+        c.estop = on
+
+    def _control(self) -> None:
+        """Before every physics step: each rover's wheels from its command."""
+        t = self.sim.d.time
+        for name, r in self.sim.rovers.items():
+            c = self.driven[name]
+            if c.trajectory is not None:  # the arm's targets along it, clipped to range
+                g = self.arms[name]
+                cols = list(c.trajectory.columns)
+                targets = self.sim.arm_targets[name]
+                targets[cols] = np.clip(c.trajectory.sample(t), g.low[cols], g.high[cols])
+                if t > c.trajectory.end:
+                    c.trajectory = None
+            if c.estop or t > c.until or (c.v == 0.0 and c.w == 0.0):
+                self.sim.brake(r)
+            else:
+                self.sim.drive(r, c.v, c.w)
+
+    def reset(self) -> None:
+        for name, q in self.sim.home.items():
+            self.sim.arm_targets[name][:] = q
+            self.driven[name] = _Driven()
+        self.sim.reset_odometry()
+
+    def publish(self) -> None:
+        d, m = self.sim.d, self.sim.m
+        stamp = _time(d.time)
+        for name, r in self.sim.rovers.items():
+            odo = self.sim.odometry[name]
+            wl = float(np.mean(d.sensordata[r.left_vel]))
+            wr = float(np.mean(d.sensordata[r.right_vel]))
+            base = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, r.base) or name
+            half = odo.yaw / 2
+            self._odom[name].publish(
+                {
+                    "header": {"stamp": stamp, "frame_id": f"{name}/odom"},
+                    "child_frame_id": base,
+                    "pose": {
+                        "pose": {
+                            "position": {"x": odo.x, "y": odo.y, "z": 0.0},
+                            "orientation": {
+                                "x": 0.0,
+                                "y": 0.0,
+                                "z": math.sin(half),
+                                "w": math.cos(half),
+                            },
+                        },
+                        "covariance": [0.0] * 36,
+                    },
+                    "twist": {
+                        "twist": {
+                            "linear": {"x": r.radius * (wl + wr) / 2, "y": 0.0, "z": 0.0},
+                            "angular": {"x": 0.0, "y": 0.0, "z": r.radius * (wr - wl) / r.track},
+                        },
+                        "covariance": [0.0] * 36,
+                    },
+                }
+            )
+            q = d.sensordata[r.orientation : r.orientation + 4]
+            gyro = d.sensordata[r.gyro : r.gyro + 3]
+            acc = d.sensordata[r.accel : r.accel + 3]
+            site = r.roles.get("imu", {}).get("site", base)
+            self._imu[name].publish(
+                {
+                    "header": {"stamp": stamp, "frame_id": site},
+                    "orientation": {"x": q[1], "y": q[2], "z": q[3], "w": q[0]},
+                    "orientation_covariance": [0.0] * 9,
+                    "angular_velocity": dict(zip("xyz", map(float, gyro), strict=True)),
+                    "angular_velocity_covariance": [0.0] * 9,
+                    "linear_acceleration": dict(zip("xyz", map(float, acc), strict=True)),
+                    "linear_acceleration_covariance": [0.0] * 9,
+                }
+            )
