@@ -30,6 +30,7 @@ from .untrusted import printable
 if TYPE_CHECKING:
     from .certify import Certificate
 
+
 class _Progress:
     """A click progress bar that appears only when there is long work."""
 
@@ -355,9 +356,10 @@ view_command = click.Command(
 
 def urdf2mjcf_main() -> None:
     # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
-    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one; anything
-    # else is a conversion, whose first argument is the SOURCE file (a file named 'cache',
-    # 'batch', 'verify' or 'view' is given as ./cache, ./batch, ./verify, ./view).
+    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one,
+    # `urdf2mjcf calibrate ...` fits one to a robot's logs; anything else is a conversion,
+    # whose first argument is the SOURCE file (a file named 'cache', 'batch', 'verify',
+    # 'view' or 'calibrate' is given as ./cache, ./batch, ./verify, ./view, ./calibrate).
     args = sys.argv[1:]
     if args[:1] == ["view"]:
         run_command(view_command, args[1:], prog_name="urdf2mjcf view")
@@ -371,6 +373,11 @@ def urdf2mjcf_main() -> None:
         from .certify.command import verify_command
 
         run_command(verify_command, args[1:], prog_name="urdf2mjcf verify")
+    if args[:1] == ["calibrate"]:
+        from .calibrate.command import calibrate_command
+
+        checked = extras.requiring("calibrate", calibrate_command)
+        run_command(checked, args[1:], prog_name="urdf2mjcf calibrate")
     run_command(urdf2mjcf_command)
 
 
