@@ -135,7 +135,10 @@ class Replay:
         init = np.tile(win.start, (len(xs), 1))
         ctrl = np.tile(win.ctrl, (len(xs), 1, 1))
         with mj_rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0) as r:
-            state, _ = r.rollout(batch, self.datas, init, ctrl)
+            # every replay from a zero warm start: else a thread's last solution seeds the
+            # next replay's constraint solver, and the residual is not a function of x alone
+            warm = np.zeros((len(batch), self.nv))
+            state, _ = r.rollout(batch, self.datas, init, ctrl, initial_warmstart=warm)
         self.evaluations += len(xs)
         state = state.reshape(len(xs), nw, self.length, -1)
         q = state[..., 1 + self.qadr]
@@ -181,13 +184,17 @@ def _delayed(series: np.ndarray, delays: Sequence[float], dt: float) -> np.ndarr
     return out
 
 
-def fit(replay: Replay, params: Sequence[Param], cfg: FitConfig) -> FitResult:
-    """The least-squares fit of ``params`` (from their nominal values) on ``replay``."""
+def fit(
+    replay: Replay, params: Sequence[Param], cfg: FitConfig, start: np.ndarray | None = None
+) -> FitResult:
+    """The least-squares fit of ``params`` on ``replay``, from ``start`` (default: their
+    nominal values)."""
     from scipy.optimize import least_squares
 
     lo = np.array([p.lo for p in params])
     hi = np.array([p.hi for p in params])
-    x0 = np.clip(np.array([p.nominal for p in params]), lo, hi)
+    x0 = np.array([p.nominal for p in params]) if start is None else np.asarray(start)
+    x0 = np.clip(x0, lo, hi)
     span = np.maximum(hi - lo, 1e-12)
     # a start on a bound (no friction, no armature) is moved inside: the solver's first
     # steps there see only one side of the cost

@@ -12,7 +12,7 @@ import numpy as np
 
 from .fit import FitResult, Tracking
 
-WIDE = 0.5
+WIDE = 0.25
 """An interval wider than this fraction of its value (either side) is 'not identified'."""
 CORRELATED = 0.95
 """Estimates correlated beyond this cannot be told apart."""
