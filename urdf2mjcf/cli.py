@@ -110,6 +110,12 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
 @shared_option("fuse_fixed")
 @shared_option("floating_base")
 @click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
+@click.option(
+    "--calibration",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="calibration.yaml from 'urdf2mjcf calibrate': its identified joint damping, "
+    "friction, armature, gains and masses written into the model.",
+)
 @shared_option("no_scene")
 @click.option("--overwrite", is_flag=True, help="Replace existing output files.")
 @shared_option("strict")
@@ -170,6 +176,7 @@ def urdf2mjcf_command(
     fuse_fixed: bool,
     floating_base: bool,
     model_name: str | None,
+    calibration: Path | None,
     no_scene: bool,
     overwrite: bool,
     strict: bool,
@@ -241,6 +248,7 @@ def urdf2mjcf_command(
             fuse_fixed=fuse_fixed,
             floating_base=floating_base,
             model_name=model_name,
+            calibration=calibration,
             scene=not no_scene,
             validate_model=not no_validate,
             overwrite=overwrite,

@@ -21,7 +21,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,8 @@ from lxml import etree
 from .. import schema
 from ..errors import InputError
 from ..fmt import fmt_float, fmt_vec
+from ..ir import Note
+from ..passes.emit import EmitResult
 
 log = logging.getLogger(__name__)
 
@@ -120,6 +122,15 @@ def _number(value: Any, keys: tuple[str, ...], key: Any, path: Path, where: str)
     ):
         raise InputError("expected a finite number >= 0", file=path, element=where)
     return float(value)
+
+
+def calibrated(result: EmitResult, path: Path) -> EmitResult:
+    """The converter's step (``--calibration FILE``): ``result`` with the file's values
+    written into a copy of its document, a warning note for each name it lacks."""
+    calib = load(path)
+    root = result.edit()
+    notes = tuple(Note("warning", f"calibration '{path}'", w) for w in apply(root, calib))
+    return replace(result, root=root, notes=result.notes + notes)
 
 
 def apply(root: etree._Element, calib: Calibration) -> list[str]:
