@@ -14,6 +14,7 @@ import yaml
 
 from tests.calibrate import arm
 from tests.security.attack import run
+from urdf2mjcf.calibrate.run import OUTPUT_FILES
 
 TRUTH = {
     "shoulder": {"damping": 1.5, "frictionloss": 0.8, "armature": 0.05},
@@ -44,7 +45,9 @@ def test_damping_friction_armature_and_gains_are_recovered(nominal, tmp_path):
         "urdf2mjcf", "calibrate", str(nominal), str(log), "-o", "cal", "--free", free, cwd=tmp_path
     )
     assert res.returncode == 0, res.stderr
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == sorted(OUTPUT_FILES)
     report = json.loads((tmp_path / "cal" / "report.json").read_text())
+    assert sorted(report["files"]) == sorted(OUTPUT_FILES)
     found = _params(report)
     assert len(found) == 8
     for name, p in found.items():

@@ -24,6 +24,9 @@ from . import logs, params, report
 
 log = logging.getLogger(__name__)
 
+OUTPUT_FILES = ("robot.xml", "calibration.yaml", "report.html", "report.json")
+"""What a calibration writes into its folder (``report.json``, the manifest, last)."""
+
 GENERATOR = "urdf2mjcf calibrate"
 """``"generator"`` of ``report.json`` (an earlier run's files are replaced by a new one)."""
 
