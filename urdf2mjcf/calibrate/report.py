@@ -93,7 +93,7 @@ def warnings(fit: FitResult) -> list[str]:
                 what = f"{owner}: {_WORDS[a.field]} and {_WORDS[b.field]}"
                 remedy = _REMEDY.get(frozenset({a.field, b.field}), "excite it differently")
             else:
-                what = f"{a.owner}'s {_WORDS[a.field]} and {b.owner}'s {_WORDS[b.field]}"
+                what = f"the {_WORDS[a.field]} of {a.owner} and the {_WORDS[b.field]} of {b.owner}"
                 remedy = "move the two separately"
             out.append(f"{what} cannot be told apart from these logs: {remedy}")
     return out
