@@ -59,3 +59,11 @@ def test_the_calibration_file_s_schema_is_read_by_the_code(tmp_path):
     calib = apply.load(path)
     assert calib.joints["elbow"] == {"damping": 0.9, "frictionloss": 0.4, "armature": 0.02}
     assert calib.payload == ("fore", 1.5) and calib.delay == 0.005
+
+
+def test_the_against_tolerances_stated_are_the_defaults():
+    from urdf2mjcf.calibrate.against import AgainstTolerances
+
+    text = " ".join((DOC.parent / "cli.md").read_text().split())
+    assert f"`--q-rms` (default {AgainstTolerances.q_rms:g} rad or m)" in text
+    assert f"`--v-rms` (default {AgainstTolerances.v_rms:g} rad/s or m/s)" in text
