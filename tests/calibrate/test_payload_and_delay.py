@@ -71,3 +71,12 @@ def test_a_sensor_delay_is_recovered(nominal, tmp_path):
     )
     assert res.returncode == 0, res.stderr
     assert _found(tmp_path / "cal")["delay"] == pytest.approx(0.010, rel=0.1)
+
+
+def test_the_same_log_gives_the_same_files(nominal, tmp_path):
+    log = arm.record(nominal, tmp_path / "log.csv", seconds=3.0, amplitude=0.5)
+    for out in ("a", "b"):
+        res = run("urdf2mjcf", "calibrate", str(nominal), str(log), "-o", out, cwd=tmp_path)
+        assert res.returncode == 0, res.stderr
+    for name in ("robot.xml", "calibration.yaml", "report.json", "report.html"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
