@@ -25,8 +25,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     # the live Foxglove stream (facility-demo --foxglove, rover-drive --foxglove): our own
     # server of Foxglove's protocol over websockets (MuJoCo's viewer brings it too)
     "live": ("websockets",),
-    # urdf2mjcf calibrate: the bounded least-squares solver
-    "calibrate": ("scipy",),
+    # urdf2mjcf calibrate: the bounded least-squares solver, the ROS 2 bag reader
+    "calibrate": ("scipy", "rosbags"),
 }
 """Extra name -> the modules it provides (import names, as pyproject.toml's extra installs
 them: cv2 is opencv-python-headless)."""

@@ -74,6 +74,8 @@ def against(
     """The compiled model ``m``'s tracking of the logs at ``log_paths``."""
     joints, actuators = params.joint_names(m), params.actuator_names(m)
     dt = float(m.opt.timestep)
-    trajectories = [logs.resample(logs.read_csv(p), joints, actuators, dt) for p in log_paths]
+    trajectories = [
+        logs.resample(logs.read(p, actuators), joints, actuators, dt) for p in log_paths
+    ]
     replay = fit.Replay(params.Applier(m, []), trajectories, fit.FitConfig(window=window))
     return Against(joints, replay.tracking(np.zeros(0)), tolerances)

@@ -21,7 +21,7 @@ from .run import GENERATOR, CalibrateConfig, calibrate
 
 @click.command("urdf2mjcf calibrate", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
-@click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
     "-o",
     "--output",
@@ -44,7 +44,7 @@ from .run import GENERATOR, CalibrateConfig, calibrate
 @click.option(
     "--holdout",
     multiple=True,
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="A whole log kept out of the fit to judge it (repeatable); default: the last "
     "--holdout-fraction of each log.",
 )

@@ -15,6 +15,7 @@ import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -130,6 +131,13 @@ def read_csv(path: Path) -> Log:
                     file=path,
                     element=f"line {i + 2}",
                 )
+    return _columns(path, header, data, sparse=False)
+
+
+def _columns(path: Path, header: list[str], data: np.ndarray, *, sparse: bool) -> Log:
+    """A :class:`Log` of the rows ``data`` under ``header`` (``t`` first; NaN: no sample);
+    ``sparse``: rows of messages that each fill only some columns (a bag), so a NaN is no
+    lost sample."""
     t = data[:, 0]
     keep = np.isfinite(t)
     if not keep.all():
@@ -138,18 +146,20 @@ def read_csv(path: Path) -> Log:
     if len(data) < 2:
         raise InputError("log has fewer than two samples", file=path)
     order = np.argsort(data[:, 0], kind="stable")
-    if (order != np.arange(len(order))).any():
+    if (order != np.arange(len(order))).any() and not sparse:
         log.warning("%s: samples are not in time order; sorted", path)
     data = data[order]
     t = data[:, 0]
     firsts = np.concatenate(([True], np.diff(t) > 0))
+    if sparse:  # messages at one time on different topics are one sample
+        firsts[:] = True
     if not firsts.all():
         log.warning(
             "%s: %d samples repeat a time; the first of each kept", path, int((~firsts).sum())
         )
     data, t = data[firsts], t[firsts]
     step = float(np.median(np.diff(t)))
-    gaps = np.diff(t) > MAX_GAP * step
+    gaps = np.diff(t) > MAX_GAP * max(step, 1e-9)
     if gaps.any():
         at = float(t[:-1][gaps][0])
         log.warning(
@@ -166,10 +176,81 @@ def read_csv(path: Path) -> Log:
         ok = np.isfinite(data[:, j])
         if ok.sum() < 2:
             raise InputError(f"column {name!r} has fewer than two numbers", file=path)
-        if not ok.all():
+        if not ok.all() and not sparse:
             log.warning("%s: column %s: %d NaN samples dropped", path, name, int((~ok).sum()))
         columns[kind][target] = (t[ok], data[ok, j])
     return Log(path, columns["q"], columns["v"], columns["u"], float(t[0]), float(t[-1]))
+
+
+BAG_SUFFIXES = (".mcap", ".db3")
+JOINT_STATE = "sensor_msgs/msg/JointState"
+COMMANDS = "std_msgs/msg/Float64MultiArray"
+
+
+def read(path: Path, actuators: list[str]) -> Log:
+    """A log: a ROS 2 bag (a folder, ``.mcap`` or ``.db3``) or else a CSV file."""
+    if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
+        return read_bag(path, actuators)
+    return read_csv(path)
+
+
+def read_bag(path: Path, actuators: list[str]) -> Log:
+    """A rosbag2 (MCAP or SQLite): ``sensor_msgs/JointState`` messages give each joint's
+    position and velocity at their header stamp (the bag's time where it is zero); one
+    ``std_msgs/Float64MultiArray`` topic (a ros2_control forward command controller's) gives
+    the commands, one value per actuator in the model's order. Messages are sorted by time."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    try:
+        reader = AnyReader([path], default_typestore=store)
+        reader.open()
+    except Exception as exc:  # rosbags' own errors name what it could not read
+        raise InputError(f"cannot read bag: {exc}", file=path) from None
+    try:
+        states = [c for c in reader.connections if c.msgtype == JOINT_STATE]
+        commands = [c for c in reader.connections if c.msgtype == COMMANDS]
+        if not states:
+            raise InputError(f"bag has no {JOINT_STATE} topic", file=path)
+        if len(commands) != 1:
+            found = ", ".join(sorted(c.topic for c in commands)) or "none"
+            raise InputError(
+                f"bag needs one {COMMANDS} topic of commands (a forward command "
+                f"controller's); it has {found}",
+                file=path,
+            )
+        index: dict[str, int] = {"t": 0}
+        rows: list[dict[int, float]] = []
+        for conn, stamp, raw in reader.messages(connections=states + commands):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            row: dict[int, float] = {}
+            if conn.msgtype == JOINT_STATE:
+                head = msg.header.stamp
+                t_ns = head.sec * 1_000_000_000 + head.nanosec or stamp
+                for i, name in enumerate(msg.name):
+                    for kind, values in (("q", msg.position), ("v", msg.velocity)):
+                        if i < len(values):
+                            row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+            else:
+                t_ns = stamp
+                if len(msg.data) != len(actuators):
+                    raise InputError(
+                        f"{conn.topic}: a command of {len(msg.data)} values; the model has "
+                        f"{len(actuators)} actuators",
+                        file=path,
+                    )
+                for name, value in zip(actuators, msg.data, strict=True):
+                    row[index.setdefault(f"u.{name}", len(index))] = float(value)
+            row[0] = t_ns * 1e-9
+            rows.append(row)
+    finally:
+        reader.close()
+    data = np.full((len(rows), len(index)), np.nan)
+    for i, row in enumerate(rows):
+        for j, value in row.items():
+            data[i, j] = value
+    return _columns(path, list(index), data, sparse=True)
 
 
 def resample(found: Log, joints: list[str], actuators: list[str], dt: float) -> Trajectory:

@@ -68,7 +68,7 @@ def calibrate(
     fitted: list[logs.Trajectory] = []
     held: list[logs.Trajectory] = []
     for p in log_paths:
-        tr = logs.resample(logs.read_csv(p), joints, actuators, dt)
+        tr = logs.resample(logs.read(p, actuators), joints, actuators, dt)
         if cfg.holdout:
             fitted.append(tr)
         else:
@@ -76,7 +76,7 @@ def calibrate(
             fitted.append(head)
             held.append(tail)
     for p in cfg.holdout:
-        held.append(logs.resample(logs.read_csv(p), joints, actuators, dt))
+        held.append(logs.resample(logs.read(p, actuators), joints, actuators, dt))
     short = [t.name for t in fitted + held if len(t.q) < 4]
     if short:
         raise InputError(f"too little data in {short[0]}: a log must span several model timesteps")

@@ -128,7 +128,7 @@ def load_model(path: Path) -> Any:
     "--against",
     "against_logs",
     multiple=True,
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=click.Path(path_type=Path),
     help="Sim against real: replay this log's commands (CSV, as calibrate reads) in the "
     "model given alone ('verify --against LOG MODEL.xml') and judge its tracking (repeatable).",
 )
