@@ -381,6 +381,10 @@ def urdf2mjcf_main() -> None:
         from .certify.command import verify_command
 
         run_command(verify_command, args[1:], prog_name="urdf2mjcf verify")
+    if args[:1] == ["excite"]:
+        from .calibrate.command import excite_command
+
+        run_command(excite_command, args[1:], prog_name="urdf2mjcf excite")
     if args[:1] == ["calibrate"]:
         from .calibrate.command import calibrate_command
 

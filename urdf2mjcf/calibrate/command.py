@@ -14,6 +14,7 @@ from ..cli_common import configure_logging, quiet_option
 from ..cli_types import FiniteFloat
 from ..errors import InputError
 from . import params
+from .excite import ExciteConfig
 from .fit import FitConfig
 from .report import improvement
 from .run import GENERATOR, CalibrateConfig, calibrate
@@ -112,4 +113,70 @@ def calibrate_command(
         click.echo(
             f"calibrated {len(s.fit.params)} parameters in {s.seconds:.1f} s; held-out RMS "
             f"position error {times}x smaller -> {output}"
+        )
+
+
+@click.command("urdf2mjcf excite", context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="The CSV to write (t, u.<actuator>...).",
+)
+@click.option(
+    "--duration",
+    type=FiniteFloat(1.0, 3600.0),
+    default=ExciteConfig.duration,
+    show_default=True,
+    help="Seconds.",
+)
+@click.option(
+    "--amplitude",
+    type=FiniteFloat(0.0, 10.0),
+    default=ExciteConfig.amplitude,
+    show_default=True,
+    help="Largest amplitude about each joint's centre (rad or m).",
+)
+@click.option(
+    "--max-velocity",
+    type=FiniteFloat(0.0, 100.0),
+    default=ExciteConfig.max_velocity,
+    show_default=True,
+    help="Largest setpoint speed (rad/s or m/s).",
+)
+@click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
+@quiet_option()
+def excite_command(
+    model: Path,
+    output: Path,
+    duration: float,
+    amplitude: float,
+    max_velocity: float,
+    overwrite: bool,
+    quiet: bool,
+) -> None:
+    """Write a multi-sine of position setpoints for MODEL.xml's servos, within 80 % of each
+    joint's range, under --max-velocity and 90 % of each servo's force range in the model's
+    replay: run it on the robot and log it for 'urdf2mjcf calibrate'."""
+    import os
+
+    from ..errors import OutputError
+    from ..mjcf_input import load_model
+    from .excite import csv_text, excite
+
+    configure_logging(0, quiet)
+    if os.path.lexists(output) and not overwrite:
+        raise OutputError("already exists; pass --overwrite to replace it", file=output)
+    m = load_model(model)
+    e = excite(m, ExciteConfig(duration=duration, amplitude=amplitude, max_velocity=max_velocity))
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(f".{output.name}.tmp")
+    tmp.write_text(csv_text(e))
+    os.replace(tmp, output)
+    if not quiet:
+        click.echo(
+            f"{len(e.t)} setpoints over {duration:g} s, amplitude {e.amplitude:.3g}, "
+            f"peak servo force {e.peak_force.max():.0%} of its range -> {output}"
         )
