@@ -82,7 +82,7 @@ def record(
     v_noise: float = 5e-3,
     still: tuple[int, ...] = (),
 ) -> Path:
-    """A CSV log of ``model`` tracking a multi-sine, sampled at ``rate`` Hz with noise;
+    """A CSV log of ``model`` tracking a multi-sine sent and sampled at ``rate`` Hz, with noise;
     the actuators ``still`` hold 0."""
     m = mujoco.MjModel.from_xml_path(str(model))
     d = mujoco.MjData(m)
@@ -94,7 +94,8 @@ def record(
     rows = []
     for k in range(int(round(seconds / m.opt.timestep))):
         t = k * m.opt.timestep
-        d.ctrl[:] = gain * 2 / len(freqs) * np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
+        if k % every == 0:  # the controller sends a command at the log's rate
+            d.ctrl[:] = gain * 2 / len(freqs) * np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
         if k % every == 0:
             rows.append([t, *d.qpos, *d.qvel, *d.ctrl])
         mujoco.mj_step(m, d)

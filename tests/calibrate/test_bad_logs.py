@@ -50,9 +50,12 @@ def test_nans_gaps_unsorted_rows_and_another_rate_are_warnings(case, tmp_path):
     for said in ("NaN samples dropped", "not in time order", "bridged by interpolation"):
         assert said in res.stderr, said
     report = json.loads((tmp_path / "cal" / "report.json").read_text())
-    found = {p["name"]: p["after"] for p in report["parameters"]}
-    assert found["shoulder.damping"] == pytest.approx(1.5, rel=0.1)
-    assert found["elbow.damping"] == pytest.approx(0.9, rel=0.1)
+    truth = {"shoulder.damping": 1.5, "elbow.damping": 0.9}
+    for p in report["parameters"]:
+        value = truth[p["name"]]
+        # each value within 10 %, or within the interval the report gives it
+        assert abs(p["after"] - value) <= max(0.1 * value, p["interval95"]), p
+    assert report["held_out_improvement"] > 2.0
 
 
 @pytest.mark.parametrize(

@@ -80,3 +80,20 @@ def test_the_same_log_gives_the_same_files(nominal, tmp_path):
         assert res.returncode == 0, res.stderr
     for name in ("robot.xml", "calibration.yaml", "report.json", "report.html"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+
+
+def test_a_whole_log_can_be_held_out(nominal, tmp_path):
+    truth = {"shoulder": {"damping": 1.5}, "elbow": {"damping": 0.9}}
+    real = arm.perturbed(nominal, tmp_path / "real.xml", truth, {})
+    fitted = arm.record(real, tmp_path / "a.csv", seconds=4.0, amplitude=0.5, seed=1)
+    held = arm.record(real, tmp_path / "b.csv", seconds=2.0, amplitude=0.5, seed=2)
+    res = run(
+        "urdf2mjcf", "calibrate", str(nominal), str(fitted), "-o", "cal", "--free", "damping",
+        "--holdout", str(held), cwd=tmp_path,
+    )  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    report = json.loads((tmp_path / "cal" / "report.json").read_text())
+    assert report["held_out"] == str(held)
+    # the whole of a.csv is fitted: 4 s at 500 Hz, less one sample per window
+    assert report["cost"]["steps_fitted"] >= 1990
+    assert _found(tmp_path / "cal")["elbow.damping"] == pytest.approx(0.9, rel=0.1)

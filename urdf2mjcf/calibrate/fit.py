@@ -12,6 +12,7 @@ white measurement noise: ``cov = s^2 (J^T J)^-1``, 95 % intervals ``+-1.96 sqrt(
 from __future__ import annotations
 
 import logging
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -97,12 +98,16 @@ class Replay:
         self.vadr = np.array(m.jnt_dofadr)
         self.nq, self.nv = m.nq, m.nv
         steps = max(2, int(round(cfg.window / self.dt)))
-        length = min([steps] + [len(t.q) - 1 for t in trajectories])
+        # one length for every window (they are replayed in one batch), at most ``steps``,
+        # that tiles each trajectory's len - 1 steps with little left over
+        length = min(
+            (len(t.q) - 1) // math.ceil((len(t.q) - 1) / steps) for t in trajectories
+        )
         starts, ctrl, q, v = [], [], [], []
         data = mujoco.MjData(m)
         size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         for tr in trajectories:
-            for k in range(0, len(tr.q) - length, length):
+            for k in range(0, len(tr.q) - length, length):  # k + length <= len - 1
                 mujoco.mj_resetData(m, data)
                 data.qpos[self.qadr] = tr.q[k]
                 data.qvel[self.vadr] = tr.v[k]
