@@ -203,6 +203,8 @@ def read_bag(path: Path, actuators: list[str]) -> Log:
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_HUMBLE)
+    if not path.is_dir():  # a regular file within the log size limit (a FIFO never blocks)
+        untrusted.check_regular(path, "log", error=InputError, what="bag")
     try:
         reader = AnyReader([path], default_typestore=store)
         reader.open()
