@@ -49,6 +49,8 @@ def _layer(module: str) -> str:
         return "api"
     if head == "certify":  # the certificate runs after the passes, beside api; verify is a command
         return "cli" if parts[-1] == "command" else "api"
+    if head == "calibrate":  # a library beside api (the converter applies its file); a command
+        return "cli" if parts[-1] == "command" else "api"
     if head in ("cli", "cli_common", "__main__", "batch"):  # batch: a command over api, executors
         return "cli"
     return "support"

@@ -52,6 +52,9 @@ class ConvertOptions:
     validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
     certify: CertifyConfig = field(default_factory=CertifyConfig)
     """The fidelity certificate of the written model (see :mod:`urdf2mjcf.certify`)."""
+    calibration: Path | None = None
+    """A calibration file (:mod:`urdf2mjcf.calibrate.apply`) written into the document
+    after the actuators and contacts."""
     scene: bool = True
     """Also write ``scene.xml`` (floor, light, sky) beside the robot."""
     overwrite: bool = False
@@ -85,6 +88,7 @@ def make_options(
     fuse_fixed: bool = False,
     floating_base: bool = False,
     model_name: str | None = None,
+    calibration: str | Path | None = None,
     scene: bool = True,
     validate_model: bool = True,
     overwrite: bool = False,
@@ -164,6 +168,7 @@ def make_options(
             if use_cache
             else None,
         ),
+        calibration=Path(calibration) if calibration else None,
         scene=scene,
         overwrite=overwrite,
     )
@@ -198,6 +203,10 @@ def _build(
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
     result = contacts.run(result, model, options.contacts, compiles)
+    if options.calibration is not None:
+        from .calibrate.apply import calibrated
+
+        result = calibrated(result, options.calibration)
     return doc, replace(model, notes=model.notes + result.notes), result
 
 

@@ -30,6 +30,7 @@ from .untrusted import printable
 if TYPE_CHECKING:
     from .certify import Certificate
 
+
 class _Progress:
     """A click progress bar that appears only when there is long work."""
 
@@ -109,6 +110,12 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
 @shared_option("fuse_fixed")
 @shared_option("floating_base")
 @click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
+@click.option(
+    "--calibration",
+    type=click.Path(path_type=Path, dir_okay=False),
+    help="calibration.yaml from 'urdf2mjcf calibrate': its identified joint damping, "
+    "friction, armature, gains and masses written into the model.",
+)
 @shared_option("no_scene")
 @click.option("--overwrite", is_flag=True, help="Replace existing output files.")
 @shared_option("strict")
@@ -169,6 +176,7 @@ def urdf2mjcf_command(
     fuse_fixed: bool,
     floating_base: bool,
     model_name: str | None,
+    calibration: Path | None,
     no_scene: bool,
     overwrite: bool,
     strict: bool,
@@ -241,6 +249,7 @@ def urdf2mjcf_command(
             fuse_fixed=fuse_fixed,
             floating_base=floating_base,
             model_name=model_name,
+            calibration=calibration,
             scene=not no_scene,
             validate_model=not no_validate,
             overwrite=overwrite,
@@ -357,9 +366,15 @@ view_command = click.Command(
 def urdf2mjcf_main() -> None:
     # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
     # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one,
+<<<<<<< HEAD
     # `urdf2mjcf serve ...` serves one to ROS 2; anything else is a conversion, whose first
     # argument is the SOURCE file (a file named 'cache', 'batch', 'verify', 'view' or
     # 'serve' is given as ./cache, ./batch, ./verify, ./view, ./serve).
+=======
+    # `urdf2mjcf calibrate ...` fits one to a robot's logs; anything else is a conversion,
+    # whose first argument is the SOURCE file (a file named 'cache', 'batch', 'verify',
+    # 'view' or 'calibrate' is given as ./cache, ./batch, ./verify, ./view, ./calibrate).
+>>>>>>> r36-calib
     args = sys.argv[1:]
     if args[:1] == ["view"]:
         run_command(view_command, args[1:], prog_name="urdf2mjcf view")
@@ -377,6 +392,15 @@ def urdf2mjcf_main() -> None:
         from .certify.command import verify_command
 
         run_command(verify_command, args[1:], prog_name="urdf2mjcf verify")
+    if args[:1] == ["excite"]:
+        from .calibrate.command import excite_command
+
+        run_command(excite_command, args[1:], prog_name="urdf2mjcf excite")
+    if args[:1] == ["calibrate"]:
+        from .calibrate.command import calibrate_command
+
+        checked = extras.requiring("calibrate", calibrate_command)
+        run_command(checked, args[1:], prog_name="urdf2mjcf calibrate")
     run_command(urdf2mjcf_command)
 
 

@@ -27,6 +27,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "live": ("websockets",),
     # urdf2mjcf serve --ros2: a Zenoh session speaking rmw_zenoh's conventions
     "ros2": ("zenoh",),
+    # urdf2mjcf calibrate: the bounded least-squares solver, the ROS 2 bag reader
+    "calibrate": ("scipy", "rosbags"),
 }
 """Extra name -> the modules it provides (import names, as pyproject.toml's extra installs
 them: cv2 is opencv-python-headless)."""

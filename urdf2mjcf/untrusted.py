@@ -33,6 +33,7 @@ LIMITS_MB: dict[str, tuple[float, str]] = {
     "yaml": (16, "a recipe, actuator config, waypoints or component YAML file"),
     "cache_entry": (2048, "one cache entry (the whole cache: $URDF2MJCF_CACHE_MAX_MB)"),
     "report": (64, "a JSON file we read back (an earlier manifest or report)"),
+    "log": (1024, "a robot's log that calibrate reads (CSV, or a bag's .mcap or .db3 file)"),
 }
 """Each kind of file's default size limit in MB, and what it covers."""
 

@@ -14,6 +14,7 @@ from typing import Any
 
 import click
 
+from ..calibrate.against import AgainstTolerances
 from ..cli_common import configure_logging, pairs, quiet_option
 from ..cli_types import BoundedInt, FiniteFloat, KeyedFloat
 from ..errors import InputError
@@ -82,7 +83,7 @@ def load_model(path: Path) -> Any:
 
 @click.command("urdf2mjcf verify", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
-@click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
+@click.argument("model", required=False, type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
 @click.option(
     "--report",
@@ -123,6 +124,28 @@ def load_model(path: Path) -> Any:
 @click.option(
     "--trust-xacro", is_flag=True, help="Run the description's code, as ROS's xacro does."
 )
+@click.option(
+    "--against",
+    "against_logs",
+    multiple=True,
+    type=click.Path(path_type=Path),
+    help="Sim against real: replay this log's commands (CSV, as calibrate reads) in the "
+    "model given alone ('verify --against LOG MODEL.xml') and judge its tracking (repeatable).",
+)
+@click.option(
+    "--q-rms",
+    type=FiniteFloat(0.0, 1e6),
+    default=AgainstTolerances.q_rms,
+    show_default=True,
+    help="--against: largest RMS position error of a joint (rad or m).",
+)
+@click.option(
+    "--v-rms",
+    type=FiniteFloat(0.0, 1e6),
+    default=AgainstTolerances.v_rms,
+    show_default=True,
+    help="--against: largest RMS velocity error of a joint (rad/s or m/s).",
+)
 @click.option("-v", "--verbose", count=True, help="The certificate's table on stderr.")
 @quiet_option()
 def verify_command(
@@ -137,6 +160,9 @@ def verify_command(
     packages: tuple[str, ...],
     no_ros_env: bool,
     trust_xacro: bool,
+    against_logs: tuple[Path, ...],
+    q_rms: float,
+    v_rms: float,
     verbose: int,
     quiet: bool,
 ) -> None:
@@ -155,6 +181,15 @@ def verify_command(
     from .tolerances import Tolerances
 
     configure_logging(verbose, quiet)
+    if against_logs:
+        if model is not None or xacro_args:
+            raise click.UsageError(
+                "with --against, give the model alone: verify --against LOG MODEL.xml"
+            )
+        _against(source, against_logs, AgainstTolerances(q_rms, v_rms), report_path, verbose, quiet)
+        return
+    if model is None:
+        raise click.UsageError("Missing argument 'MODEL'.")
     tol = Tolerances().with_values(tolerances)
     names = load_name_map(name_map) if name_map else NameMap()
     if report_path:
@@ -188,3 +223,42 @@ def verify_command(
         click.echo(printable(f"failed: {failure}"), err=True)
     click.echo(printable(certificate.summary()), err=True)
     sys.exit(1)  # a figure out of tolerance (run_command passes SystemExit through)
+
+
+def _against(
+    model: Path,
+    logs: tuple[Path, ...],
+    tol: AgainstTolerances,
+    report_path: Path | None,
+    verbose: int,
+    quiet: bool,
+) -> None:
+    """``verify --against LOG MODEL.xml``: exit 0 when every joint tracks the logs within
+    the tolerances, 1 when one does not (each on stderr)."""
+    from .. import output as out
+    from ..calibrate.against import against
+    from ..calibrate.fit import FitConfig
+    from ..extras import require
+
+    require("calibrate", "verify --against")
+    if report_path:
+        if report_path.resolve() in (model.resolve(), *(p.resolve() for p in logs)):
+            raise click.BadParameter("is an input file", param_hint="--report")
+        out.check_file(report_path, False, GENERATOR)
+    found = against(load_model(model), logs, tol, FitConfig.window)
+    if report_path:
+        data = {"model": str(model), "logs": [str(p) for p in logs], "against": found.to_dict()}
+        out.write_json(report_path, data, GENERATOR)
+    if verbose:
+        click.echo(printable(found.table()), err=True)
+    failures = found.failures()
+    worst = max(found.tracking.q_rms)
+    summary = f"sim against real: {len(found.joints)} joints, worst RMS position error {worst:.3g}"
+    if not failures:
+        if not quiet:
+            click.echo(printable(f"{summary}: passed"))
+        return
+    for failure in failures:
+        click.echo(printable(f"failed: {failure}"), err=True)
+    click.echo(printable(f"{summary}: failed"), err=True)
+    sys.exit(1)

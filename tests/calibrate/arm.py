@@ -1,0 +1,116 @@
+"""A small converted arm and logs of a perturbed copy of it, for the calibration tests.
+
+The truth is made independently of the calibration code: the converted MJCF's attributes
+edited with lxml, compiled by MuJoCo, stepped by ``mj_step`` under a multi-sine of position
+setpoints, with Gaussian sensor noise added to the log."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from lxml import etree
+
+import urdf2mjcf
+
+URDF = """<robot name="arm2">
+  <link name="world"/>
+  <link name="base"><inertial><mass value="2"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="0.1 0.1 0.05"/></geometry></collision></link>
+  <joint name="fix" type="fixed"><parent link="world"/><child link="base"/></joint>
+  <link name="upper"><inertial><origin xyz="0 0 0.15"/><mass value="1.5"/>
+    <inertia ixx="0.012" iyy="0.012" izz="0.002" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.15"/><geometry><box size="0.05 0.05 0.3"/></geometry>
+    </collision></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+    <origin xyz="0 0 0.05"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="40" velocity="3"/><dynamics damping="0.5"/></joint>
+  <link name="fore"><inertial><origin xyz="0 0 0.12"/><mass value="1.0"/>
+    <inertia ixx="0.005" iyy="0.005" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.12"/><geometry><box size="0.04 0.04 0.24"/></geometry>
+    </collision></link>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2" effort="20" velocity="3"/><dynamics damping="0.3"/></joint>
+</robot>
+"""
+
+JOINTS = ("shoulder", "elbow")
+NOMINAL_KP = {"shoulder": 3170.0, "elbow": 589.0}
+"""The gains the converter designs for this arm (10 Hz, critically damped)."""
+
+
+def convert(folder: Path) -> Path:
+    """The arm converted with position servos on both joints."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "arm.urdf").write_text(URDF)
+    (folder / "act.yaml").write_text('joints:\n  "*": {type: position}\n')
+    out = folder / "out" / "arm.xml"
+    urdf2mjcf.convert(
+        folder / "arm.urdf", out, actuator_config=folder / "act.yaml", use_environment=False
+    )
+    return out
+
+
+def perturbed(
+    model: Path, dest: Path, joints: Mapping[str, Mapping[str, float]], kp: Mapping[str, float]
+) -> Path:
+    """``model`` with joint attributes and servo gains set as given."""
+    tree = etree.parse(str(model))
+    for el in tree.iter("joint"):
+        for key, value in joints.get(el.get("name"), {}).items():
+            el.set(key, repr(float(value)))
+    for el in tree.iter("position"):
+        if el.get("name") in kp:
+            el.set("kp", repr(float(kp[el.get("name")])))
+    dest.write_bytes(etree.tostring(tree))
+    return dest
+
+
+def record(
+    model: Path,
+    dest: Path,
+    *,
+    seconds: float = 10.0,
+    rate: float = 500.0,
+    seed: int = 0,
+    amplitude: float = 0.3,
+    q_noise: float = 2e-4,
+    v_noise: float = 5e-3,
+    still: tuple[int, ...] = (),
+) -> Path:
+    """A CSV log of ``model`` tracking a multi-sine sent and sampled at ``rate`` Hz, with noise;
+    the actuators ``still`` hold 0."""
+    m = mujoco.MjModel.from_xml_path(str(model))
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    freqs = np.array([0.2, 0.5, 0.9, 1.4, 2.0])
+    phase = rng.uniform(0, 2 * np.pi, (m.nu, len(freqs)))
+    gain = np.array([0.0 if a in still else amplitude for a in range(m.nu)])
+    every = max(1, int(round(1.0 / (rate * m.opt.timestep))))  # steps per log sample
+    rows = []
+    for k in range(int(round(seconds / m.opt.timestep))):
+        t = k * m.opt.timestep
+        if k % every == 0:  # the controller sends a command at the log's rate
+            d.ctrl[:] = gain * 2 / len(freqs) * np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
+        if k % every == 0:
+            rows.append([t, *d.qpos, *d.qvel, *d.ctrl])
+        mujoco.mj_step(m, d)
+    data = np.array(rows)
+    n = m.njnt
+    data[:, 1 : 1 + n] += rng.normal(0, q_noise, (len(data), n))
+    data[:, 1 + n : 1 + 2 * n] += rng.normal(0, v_noise, (len(data), n))
+    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(n)]
+    acts = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(m.nu)]
+    header = [
+        "t",
+        *(f"q.{j}" for j in names),
+        *(f"v.{j}" for j in names),
+        *(f"u.{a}" for a in acts),
+    ]
+    lines = [",".join(header)] + [",".join(f"{x:.9g}" for x in row) for row in data]
+    dest.write_text("\n".join(lines) + "\n")
+    return dest

@@ -1,0 +1,86 @@
+"""Logs as ROS 2 bags (rosbag2, MCAP and SQLite, written here with rosbags): JointState
+messages and a forward command controller's Float64MultiArray, written out of time order,
+calibrate as the same log as CSV does; a bag with no command messages is one error."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.calibrate import arm
+from tests.security.attack import assert_one_error, run
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory) -> tuple[Path, Path]:
+    folder = tmp_path_factory.mktemp("bags")
+    nominal = arm.convert(folder)
+    truth = {"shoulder": {"damping": 1.5}, "elbow": {"damping": 0.9}}
+    real = arm.perturbed(nominal, folder / "real.xml", truth, {})
+    return nominal, arm.record(real, folder / "log.csv", seconds=6.0, amplitude=0.5)
+
+
+def _bag(csv: Path, dest: Path, storage: str, *, commands: bool = True) -> Path:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    js, arr = (
+        store.types["sensor_msgs/msg/JointState"],
+        store.types["std_msgs/msg/Float64MultiArray"],
+    )
+    header_t = store.types["std_msgs/msg/Header"]
+    time_t = store.types["builtin_interfaces/msg/Time"]
+    layout = store.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(dest, version=8, storage_plugin=plugin) as w:
+        states = w.add_connection("/joint_states", js.__msgtype__, typestore=store)
+        cmds = w.add_connection("/position_controller/commands", arr.__msgtype__, typestore=store)
+        order = np.arange(len(data))
+        order[100:110] = order[100:110][::-1]  # a few written out of order
+        for i in order:
+            t, q, v, u = data[i, 0], data[i, 1:3], data[i, 3:5], data[i, 5:7]
+            ns = int(round(t * 1e9))
+            stamp = time_t(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+            msg = js(header=header_t(stamp=stamp, frame_id=""), name=list(arm.JOINTS),
+                     position=q, velocity=v, effort=np.zeros(0))  # fmt: skip
+            w.write(states, ns, store.serialize_cdr(msg, js.__msgtype__))
+            if commands:
+                w.write(cmds, ns, store.serialize_cdr(arr(layout=layout, data=u), arr.__msgtype__))
+    return dest
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_a_bag_calibrates_as_its_csv_does(case, tmp_path, storage):
+    nominal, csv = case
+    bag = _bag(csv, tmp_path / "run", storage)
+    found = {}
+    for name, log in (("bag", bag), ("csv", csv)):
+        res = run(
+            "urdf2mjcf",
+            "calibrate",
+            str(nominal),
+            str(log),
+            "-o",
+            name,
+            "--free",
+            "damping",
+            cwd=tmp_path,
+        )
+        assert res.returncode == 0, res.stderr
+        report = json.loads((tmp_path / name / "report.json").read_text())
+        found[name] = {p["name"]: p["after"] for p in report["parameters"]}
+    assert found["bag"]["shoulder.damping"] == pytest.approx(1.5, rel=0.1)
+    assert found["bag"] == pytest.approx(found["csv"], rel=1e-3)
+
+
+def test_a_bag_with_no_command_messages_is_one_error(case, tmp_path):
+    nominal, csv = case
+    bag = _bag(csv, tmp_path / "run", "mcap", commands=False)
+    res = run("urdf2mjcf", "calibrate", str(nominal), str(bag), "-o", "cal", cwd=tmp_path)
+    assert_one_error(res, "run", "lacks u.shoulder, u.elbow")
+    assert not (tmp_path / "cal").exists()

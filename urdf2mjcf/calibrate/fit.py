@@ -1,0 +1,289 @@
+"""Replay logged commands in MuJoCo and fit the free parameters to the tracking error.
+
+Each trajectory is cut into windows of :attr:`FitConfig.window` seconds; each window
+starts from the measured state and is rolled out open-loop under the logged commands
+(``mujoco.rollout``: every window and every parameter set of a finite-difference Jacobian
+in one batched call). The residual is the measured minus the simulated position and
+velocity of every joint, each signal scaled by its noise (the RMS of its residual after a
+first fit), so that the intervals from the Jacobian are those of a least-squares fit with
+white measurement noise: ``cov = s^2 (J^T J)^-1``, 95 % intervals ``+-1.96 sqrt(cov_ii)``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+from mujoco import rollout as mj_rollout
+
+from .logs import Trajectory
+from .params import Applier, Param
+
+log = logging.getLogger(__name__)
+
+FD_STEP = 1e-4
+"""Finite-difference step of the Jacobian, as a fraction of each bound span."""
+BLOCK = 0.25
+START_INSIDE = 0.01
+"""A start on a bound is moved this fraction of the span inside."""
+"""Seconds of residual treated as one correlated block for the intervals."""
+
+Z95 = 1.959964
+"""Two-sided 95 % quantile of the normal distribution."""
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """How the fit runs."""
+
+    window: float = 2.0
+    """Seconds of each open-loop replay, from a measured state."""
+    max_evals: int = 200
+    """Most Jacobian evaluations of the least-squares solver, per stage."""
+    threads: int = 0
+    """Rollout threads (0: the CPUs this process may use)."""
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """Tracking error of one model on some trajectories, per joint."""
+
+    q_rms: np.ndarray
+    """(njoint,) RMS position error, rad or m."""
+    q_max: np.ndarray
+    v_rms: np.ndarray
+    """(njoint,) RMS velocity error, rad/s or m/s."""
+    v_max: np.ndarray
+
+
+@dataclass(frozen=True)
+class FitResult:
+    params: list[Param]
+    x: np.ndarray
+    """(p,) fitted values."""
+    interval: np.ndarray
+    """(p,) 95 % half-widths (inf where the data do not determine the parameter)."""
+    correlation: np.ndarray
+    """(p, p) correlation of the estimates."""
+    at_bound: list[bool]
+    evaluations: int
+    """Rollouts of every window, counted in parameter sets."""
+
+
+@dataclass(frozen=True)
+class _Windows:
+    start: np.ndarray
+    """(w, nstate) initial full-physics states."""
+    ctrl: np.ndarray
+    """(w, n, nu)."""
+    q: np.ndarray
+    """(w, n, nj) measured positions after each step."""
+    v: np.ndarray
+
+
+class Replay:
+    """The windows of some trajectories, ready to be replayed by any parameter set."""
+
+    def __init__(self, applier: Applier, trajectories: Sequence[Trajectory], cfg: FitConfig):
+        self.applier = applier
+        m = applier.base
+        self.dt = float(m.opt.timestep)
+        self.qadr = np.array(m.jnt_qposadr)
+        self.vadr = np.array(m.jnt_dofadr)
+        self.nq, self.nv = m.nq, m.nv
+        steps = max(2, int(round(cfg.window / self.dt)))
+        # one length for every window (they are replayed in one batch), at most ``steps``,
+        # that tiles each trajectory's len - 1 steps with little left over
+        length = min(
+            (len(t.q) - 1) // math.ceil((len(t.q) - 1) / steps) for t in trajectories
+        )
+        starts, ctrl, q, v = [], [], [], []
+        data = mujoco.MjData(m)
+        size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        for tr in trajectories:
+            for k in range(0, len(tr.q) - length, length):  # k + length <= len - 1
+                mujoco.mj_resetData(m, data)
+                data.qpos[self.qadr] = tr.q[k]
+                data.qvel[self.vadr] = tr.v[k]
+                state = np.empty(size)
+                mujoco.mj_getState(m, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+                starts.append(state)
+                ctrl.append(tr.u[k : k + length])
+                q.append(tr.q[k + 1 : k + length + 1])
+                v.append(tr.v[k + 1 : k + length + 1])
+        self.windows = _Windows(np.array(starts), np.array(ctrl), np.array(q), np.array(v))
+        self.length = length
+        nthread = cfg.threads or len(os.sched_getaffinity(0))
+        self.nthread = max(1, min(nthread, 16))
+        self.datas = [mujoco.MjData(m) for _ in range(self.nthread)]
+        self.q_scale = np.ones(len(self.qadr))
+        self.v_scale = np.ones(len(self.vadr))
+        self.evaluations = 0
+
+    @property
+    def samples(self) -> int:
+        return int(self.windows.q.shape[0] * self.windows.q.shape[1])
+
+    def simulate(self, xs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted measurements for each parameter vector: (len(xs), w, n, nj) positions
+        and velocities, the sensor delay applied."""
+        win = self.windows
+        nw = len(win.start)
+        models = [self.applier.model(x) for x in xs]
+        batch = [mm for mm in models for _ in range(nw)]
+        init = np.tile(win.start, (len(xs), 1))
+        ctrl = np.tile(win.ctrl, (len(xs), 1, 1))
+        with mj_rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0) as r:
+            # every replay from a zero warm start: else a thread's last solution seeds the
+            # next replay's constraint solver, and the residual is not a function of x alone
+            warm = np.zeros((len(batch), self.nv))
+            state, _ = r.rollout(batch, self.datas, init, ctrl, initial_warmstart=warm)
+        self.evaluations += len(xs)
+        state = state.reshape(len(xs), nw, self.length, -1)
+        q = state[..., 1 + self.qadr]
+        v = state[..., 1 + self.nq + self.vadr]
+        delays = [self.applier.delay(x) for x in xs]
+        if any(delays):
+            q0 = np.tile(win.start[None, :, None, 1 + self.qadr], (len(xs), 1, 1, 1))
+            v0 = np.tile(win.start[None, :, None, 1 + self.nq + self.vadr], (len(xs), 1, 1, 1))
+            q = _delayed(np.concatenate([q0, q], axis=2), delays, self.dt)
+            v = _delayed(np.concatenate([v0, v], axis=2), delays, self.dt)
+        return q, v
+
+    def residuals(self, xs: Sequence[np.ndarray]) -> np.ndarray:
+        """(len(xs), N) scaled residuals."""
+        q, v = self.simulate(xs)
+        rq = (q - self.windows.q[None]) / self.q_scale
+        rv = (v - self.windows.v[None]) / self.v_scale
+        return np.concatenate([rq.reshape(len(xs), -1), rv.reshape(len(xs), -1)], axis=1)
+
+    def tracking(self, x: np.ndarray) -> Tracking:
+        q, v = self.simulate([x])
+        eq = np.abs(q[0] - self.windows.q).reshape(-1, len(self.qadr))
+        ev = np.abs(v[0] - self.windows.v).reshape(-1, len(self.vadr))
+        return Tracking(
+            np.sqrt((eq**2).mean(axis=0)),
+            eq.max(axis=0),
+            np.sqrt((ev**2).mean(axis=0)),
+            ev.max(axis=0),
+        )
+
+
+def _delayed(series: np.ndarray, delays: Sequence[float], dt: float) -> np.ndarray:
+    """``series`` (sets, w, n + 1, nj), row 0 the initial state, read ``delay`` seconds
+    late: rows 1.. at times ``k dt - delay``, linearly interpolated (clamped at row 0)."""
+    n = series.shape[2] - 1
+    out = np.empty_like(series[:, :, 1:])
+    for s, delay in enumerate(delays):
+        pos = np.clip(np.arange(1, n + 1) - delay / dt, 0.0, n)
+        lo = np.floor(pos).astype(int)
+        hi = np.minimum(lo + 1, n)
+        f = (pos - lo)[None, :, None]
+        out[s] = series[s][:, lo] * (1 - f) + series[s][:, hi] * f
+    return out
+
+
+def fit(
+    replay: Replay, params: Sequence[Param], cfg: FitConfig, start: np.ndarray | None = None
+) -> FitResult:
+    """The least-squares fit of ``params`` on ``replay``, from ``start`` (default: their
+    nominal values)."""
+    from scipy.optimize import least_squares
+
+    lo = np.array([p.lo for p in params])
+    hi = np.array([p.hi for p in params])
+    x0 = np.array([p.nominal for p in params]) if start is None else np.asarray(start)
+    x0 = np.clip(x0, lo, hi)
+    span = np.maximum(hi - lo, 1e-12)
+    # a start on a bound (no friction, no armature) is moved inside: the solver's first
+    # steps there see only one side of the cost
+    x0 = np.clip(x0, lo + START_INSIDE * span, hi - START_INSIDE * span)
+
+    # the solver works on z = (x - lo) / (hi - lo) in [0, 1]: one scale for every kind
+    def jac_z(z: np.ndarray) -> np.ndarray:
+        step = np.where(z + FD_STEP > 1.0, -FD_STEP, FD_STEP)  # step inward at an upper bound
+        xs = [lo + z * span] + [
+            lo + (z + np.eye(len(z))[i] * step[i]) * span for i in range(len(z))
+        ]
+        r = replay.residuals(xs)
+        return ((r[1:] - r[0]) / step[:, None]).T
+
+    def fun_z(z: np.ndarray) -> np.ndarray:
+        return replay.residuals([lo + z * span])[0]
+
+    def jac_of(x: np.ndarray) -> np.ndarray:
+        return jac_z((x - lo) / span) / span
+
+    # first with each signal scaled by its spread, then by the noise the fit leaves
+    q_all = replay.windows.q.reshape(-1, len(replay.qadr))
+    v_all = replay.windows.v.reshape(-1, len(replay.vadr))
+    replay.q_scale = np.maximum(q_all.std(axis=0), 1e-6)
+    replay.v_scale = np.maximum(v_all.std(axis=0), 1e-6)
+    x = x0
+    for _stage in range(2):
+        if len(params):
+            sol = least_squares(
+                fun_z,
+                (x - lo) / span,
+                jac=jac_z,
+                bounds=(0.0, 1.0),
+                max_nfev=cfg.max_evals,
+                method="trf",
+                xtol=1e-10,
+                ftol=1e-10,
+                gtol=1e-10,
+            )
+            x = lo + sol.x * span
+        r = replay.residuals([x])[0]
+        nj = len(replay.qadr)
+        per = r.reshape(2, -1, nj)
+        replay.q_scale = replay.q_scale * np.maximum(np.sqrt((per[0] ** 2).mean(axis=0)), 1e-9)
+        replay.v_scale = replay.v_scale * np.maximum(np.sqrt((per[1] ** 2).mean(axis=0)), 1e-9)
+    interval, corr = _intervals(replay, x, jac_of, len(params))
+    at_bound = [
+        bool(x[i] - lo[i] < 1e-6 * span[i] or hi[i] - x[i] < 1e-6 * span[i])
+        for i in range(len(params))
+    ]
+    return FitResult(list(params), x, interval, corr, at_bound, replay.evaluations)
+
+
+def _intervals(replay: Replay, x: np.ndarray, jac_of: Any, p: int) -> tuple[np.ndarray, np.ndarray]:
+    if p == 0:
+        return np.zeros(0), np.zeros((0, 0))
+    r = replay.residuals([x])[0]
+    jac = jac_of(x)
+    dof = max(len(r) - p, 1)
+    s2 = float(r @ r) / dof
+    jtj = jac.T @ jac
+    scale = np.sqrt(np.maximum(np.diag(jtj), 1e-300))
+    normed = jtj / np.outer(scale, scale)
+    w, vecs = np.linalg.eigh(normed)
+    # directions the data barely see (relative eigenvalue below 1e-10) are not determined
+    good = w > 1e-10 * max(w.max(), 1e-300)
+    inv = ((vecs[:, good] / w[good]) @ vecs[:, good].T) / np.outer(scale, scale)
+    # the residual of a replay is correlated in time (a window starts from a noisy state):
+    # the covariance is the larger of the white-noise one and the one robust to correlation
+    # within blocks of BLOCK seconds (a sandwich over the blocks' score sums)
+    block = max(1, min(replay.length, int(round(BLOCK / replay.dt))))
+    nw, nj = replay.windows.q.shape[0], len(replay.qadr)
+    nb = replay.length // block
+    shaped = (2, nw, replay.length, nj)
+    scores = (jac * r[:, None]).reshape(*shaped, p)[:, :, : nb * block]
+    sums = scores.reshape(2, nw, nb, block, nj, p).sum(axis=(0, 3, 4)).reshape(-1, p)
+    meat = sums.T @ sums
+    robust = inv @ meat @ inv
+    var = np.maximum(np.diag(s2 * inv), np.diag(robust))
+    cov = robust.copy()
+    np.fill_diagonal(cov, var)
+    undetermined = np.abs(vecs[:, ~good]).max(axis=1) > 0.1 if (~good).any() else np.zeros(p, bool)
+    half = Z95 * np.sqrt(np.maximum(var, 0.0))
+    half[undetermined] = np.inf
+    sd = np.sqrt(np.maximum(var, 1e-300))
+    corr = np.clip(cov / np.outer(sd, sd), -1.0, 1.0)
+    return half, corr

@@ -1,0 +1,313 @@
+"""A robot's log (CSV) as typed arrays, checked against the model and resampled.
+
+The CSV's header is ``t`` (seconds), then ``q.<joint>`` and ``v.<joint>`` (measured
+position and velocity, rad or m and per second) and ``u.<actuator>`` (the command sent to
+each actuator, in its own unit). Samples need not be sorted or evenly spaced: a sample with
+a NaN is dropped from that column, repeated times keep their first sample, and every column
+is interpolated onto the model's timestep (positions and velocities linearly, commands held
+as a real drive holds the last command it received).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import untrusted
+from ..errors import InputError
+
+log = logging.getLogger(__name__)
+
+MAX_GAP = 10.0
+"""A gap longer than this many median sample intervals is warned about (bridged, not
+measured)."""
+
+
+@dataclass(frozen=True)
+class Log:
+    """One log as read: each column's own samples (NaNs dropped, times sorted)."""
+
+    path: Path
+    q: dict[str, tuple[np.ndarray, np.ndarray]]
+    """joint -> (times (n,) s, positions (n,) rad or m)."""
+    v: dict[str, tuple[np.ndarray, np.ndarray]]
+    """joint -> (times (n,) s, velocities (n,) rad/s or m/s)."""
+    u: dict[str, tuple[np.ndarray, np.ndarray]]
+    """actuator -> (times (n,) s, commands (n,), in the actuator's unit)."""
+    start: float
+    """First time of the log, s."""
+    end: float
+    """Last time of the log, s."""
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A log on the model's time grid: row ``k`` is time ``t0 + k * dt``."""
+
+    name: str
+    """Where it came from (the file, and the part of it)."""
+    dt: float
+    """Model timestep, s."""
+    q: np.ndarray
+    """(n, njoint) measured positions, the model's joint order."""
+    v: np.ndarray
+    """(n, njoint) measured velocities."""
+    u: np.ndarray
+    """(n, nu) commands, the model's actuator order; row k acts from step k to k + 1."""
+
+    def split(self, fraction: float) -> tuple[Trajectory, Trajectory]:
+        """The first ``1 - fraction`` of the rows and the rest (held out)."""
+        cut = int(round(len(self.q) * (1.0 - fraction)))
+        head = Trajectory(
+            f"{self.name} (fitted part)", self.dt, self.q[:cut], self.v[:cut], self.u[:cut]
+        )
+        tail = Trajectory(
+            f"{self.name} (held out)", self.dt, self.q[cut:], self.v[cut:], self.u[cut:]
+        )
+        return head, tail
+
+
+def read_csv(path: Path) -> Log:
+    """The CSV log at ``path``; :class:`InputError` naming the file and column (or line)
+    when it cannot be used."""
+    raw = untrusted.read_file(path, "log", error=InputError, what="log")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError("cannot read log: not a text file", file=path) from None
+    rows = list(csv.reader(text.splitlines()))
+    if not rows:
+        raise InputError("log is empty: expected a header 't,q.<joint>,...'", file=path)
+    header = [h.strip() for h in rows[0]]
+    if not header or header[0] != "t":
+        raise InputError(
+            "the first column of the header must be 't' (seconds), then q.<joint>, "
+            "v.<joint>, u.<actuator>",
+            file=path,
+            element="line 1",
+        )
+    seen: set[str] = set()
+    for name in header[1:]:
+        kind, _, target = name.partition(".")
+        if kind not in ("q", "v", "u") or not target:
+            raise InputError(
+                f"column {untrusted.excerpt(name, 60)!r}: expected q.<joint>, v.<joint> or "
+                "u.<actuator>",
+                file=path,
+                element="line 1",
+            )
+        if name in seen:
+            raise InputError(f"column {name!r} given twice", file=path, element="line 1")
+        seen.add(name)
+    data = np.full((len(rows) - 1, len(header)), np.nan)
+    for i, row in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InputError(
+                f"{len(row)} values where the header has {len(header)} columns",
+                file=path,
+                element=f"line {i + 2}",
+            )
+        for j, cell in enumerate(row):
+            cell = cell.strip()
+            if cell.lower() in ("", "nan"):
+                continue
+            try:
+                data[i, j] = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"column {header[j]!r}: {untrusted.excerpt(cell, 30)!r} is not a number",
+                    file=path,
+                    element=f"line {i + 2}",
+                ) from None
+            if not math.isfinite(data[i, j]):
+                raise InputError(
+                    f"column {header[j]!r}: {cell!r} is not a finite number",
+                    file=path,
+                    element=f"line {i + 2}",
+                )
+    return _columns(path, header, data, sparse=False)
+
+
+def _columns(path: Path, header: list[str], data: np.ndarray, *, sparse: bool) -> Log:
+    """A :class:`Log` of the rows ``data`` under ``header`` (``t`` first; NaN: no sample);
+    ``sparse``: rows of messages that each fill only some columns (a bag), so a NaN is no
+    lost sample."""
+    t = data[:, 0]
+    keep = np.isfinite(t)
+    if not keep.all():
+        log.warning("%s: %d samples without a time dropped", path, int((~keep).sum()))
+    data = data[keep]
+    if len(data) < 2:
+        raise InputError("log has fewer than two samples", file=path)
+    order = np.argsort(data[:, 0], kind="stable")
+    if (order != np.arange(len(order))).any() and not sparse:
+        log.warning("%s: samples are not in time order; sorted", path)
+    data = data[order]
+    t = data[:, 0]
+    firsts = np.concatenate(([True], np.diff(t) > 0))
+    if sparse:  # messages at one time on different topics are one sample
+        firsts[:] = True
+    if not firsts.all():
+        log.warning(
+            "%s: %d samples repeat a time; the first of each kept", path, int((~firsts).sum())
+        )
+    data, t = data[firsts], t[firsts]
+    step = float(np.median(np.diff(t)))
+    gaps = np.diff(t) > MAX_GAP * max(step, 1e-9)
+    if gaps.any():
+        at = float(t[:-1][gaps][0])
+        log.warning(
+            "%s: %d gaps longer than %g samples (the first at t=%.3f s) are bridged by "
+            "interpolation",
+            path,
+            int(gaps.sum()),
+            MAX_GAP,
+            at,
+        )
+    columns: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {"q": {}, "v": {}, "u": {}}
+    for j, name in enumerate(header[1:], start=1):
+        kind, _, target = name.partition(".")
+        ok = np.isfinite(data[:, j])
+        if ok.sum() < 2:
+            raise InputError(f"column {name!r} has fewer than two numbers", file=path)
+        if not ok.all() and not sparse:
+            log.warning("%s: column %s: %d NaN samples dropped", path, name, int((~ok).sum()))
+        columns[kind][target] = (t[ok], data[ok, j])
+    return Log(path, columns["q"], columns["v"], columns["u"], float(t[0]), float(t[-1]))
+
+
+BAG_SUFFIXES = (".mcap", ".db3")
+JOINT_STATE = "sensor_msgs/msg/JointState"
+COMMANDS = "std_msgs/msg/Float64MultiArray"
+
+
+def read(path: Path, actuators: list[str]) -> Log:
+    """A log: a ROS 2 bag (a folder, ``.mcap`` or ``.db3``) or else a CSV file."""
+    if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
+        return read_bag(path, actuators)
+    return read_csv(path)
+
+
+def read_bag(path: Path, actuators: list[str]) -> Log:
+    """A rosbag2 (MCAP or SQLite): ``sensor_msgs/JointState`` messages give each joint's
+    position and velocity at their header stamp (the bag's time where it is zero); one
+    ``std_msgs/Float64MultiArray`` topic (a ros2_control forward command controller's) gives
+    the commands, one value per actuator in the model's order. Messages are sorted by time."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    if not path.is_dir():  # a regular file within the log size limit (a FIFO never blocks)
+        untrusted.check_regular(path, "log", error=InputError, what="bag")
+    try:
+        reader = AnyReader([path], default_typestore=store)
+        reader.open()
+    except Exception as exc:  # rosbags' own errors name what it could not read
+        raise InputError(f"cannot read bag: {exc}", file=path) from None
+    try:
+        states = [c for c in reader.connections if c.msgtype == JOINT_STATE]
+        commands = [c for c in reader.connections if c.msgtype == COMMANDS]
+        if not states:
+            raise InputError(f"bag has no {JOINT_STATE} topic", file=path)
+        if len(commands) != 1:
+            found = ", ".join(sorted(c.topic for c in commands)) or "none"
+            raise InputError(
+                f"bag needs one {COMMANDS} topic of commands (a forward command "
+                f"controller's); it has {found}",
+                file=path,
+            )
+        index: dict[str, int] = {"t": 0}
+        rows: list[dict[int, float]] = []
+        for conn, stamp, raw in reader.messages(connections=states + commands):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            row: dict[int, float] = {}
+            if conn.msgtype == JOINT_STATE:
+                head = msg.header.stamp
+                t_ns = head.sec * 1_000_000_000 + head.nanosec or stamp
+                for i, name in enumerate(msg.name):
+                    for kind, values in (("q", msg.position), ("v", msg.velocity)):
+                        if i < len(values):
+                            row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+            else:
+                t_ns = stamp
+                if len(msg.data) != len(actuators):
+                    raise InputError(
+                        f"{conn.topic}: a command of {len(msg.data)} values; the model has "
+                        f"{len(actuators)} actuators",
+                        file=path,
+                    )
+                for name, value in zip(actuators, msg.data, strict=True):
+                    row[index.setdefault(f"u.{name}", len(index))] = float(value)
+            row[0] = t_ns * 1e-9
+            rows.append(row)
+    finally:
+        reader.close()
+    data = np.full((len(rows), len(index)), np.nan)
+    for i, row in enumerate(rows):
+        for j, value in row.items():
+            data[i, j] = value
+    return _columns(path, list(index), data, sparse=True)
+
+
+def resample(found: Log, joints: list[str], actuators: list[str], dt: float) -> Trajectory:
+    """``found`` on a grid of step ``dt`` (the model's timestep), columns in the model's
+    order; :class:`InputError` when it does not describe this model: a joint or actuator
+    the log lacks, or no column of the model at all (a log of another robot)."""
+    path = found.path
+    named = set(found.q) | set(found.v) | set(found.u)
+    ours = set(joints) | set(actuators)
+    if not named & ours:
+        raise InputError(
+            "log names none of the model's joints or actuators (a log of another robot?): "
+            f"log has {_names(sorted(named))}; model has {_names(joints)}",
+            file=path,
+        )
+    unknown = sorted(set(found.q) - set(joints)) + sorted(set(found.u) - set(actuators))
+    if unknown:
+        log.warning(
+            "%s: columns of no joint or actuator of the model ignored: %s", path, _names(unknown)
+        )
+    lacking = [f"q.{j}" for j in joints if j not in found.q]
+    lacking += [f"u.{a}" for a in actuators if a not in found.u]
+    if lacking:
+        raise InputError(
+            f"log lacks {_names(lacking)}: every joint's position and every actuator's "
+            "command must be logged to replay it",
+            file=path,
+        )
+    n = int(math.floor((found.end - found.start) / dt + 1e-9)) + 1
+    if n < 3:
+        raise InputError(f"log is shorter than three model timesteps ({dt:g} s)", file=path)
+    grid = found.start + dt * np.arange(n)
+    q = np.column_stack([np.interp(grid, *found.q[j]) for j in joints])
+    vs = []
+    for j, name in enumerate(joints):
+        if name in found.v:
+            vs.append(np.interp(grid, *found.v[name]))
+        else:
+            log.warning("%s: no v.%s: velocity taken from the positions' differences", path, name)
+            vs.append(np.gradient(q[:, j], dt))
+    u = (
+        np.column_stack([_hold(grid, *found.u[a]) for a in actuators])
+        if actuators
+        else np.zeros((n, 0))
+    )
+    return Trajectory(str(path), dt, q, np.column_stack(vs), u)
+
+
+def _hold(grid: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Zero-order hold: at each grid time the last sample at or before it (the first sample
+    before the log's first)."""
+    i = np.searchsorted(t, grid + 1e-12, side="right") - 1
+    return x[np.clip(i, 0, len(x) - 1)]
+
+
+def _names(names: list[str], most: int = 8) -> str:
+    shown = ", ".join(untrusted.excerpt(n, 40) for n in names[:most])
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
