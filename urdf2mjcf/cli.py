@@ -366,15 +366,10 @@ view_command = click.Command(
 def urdf2mjcf_main() -> None:
     # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
     # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one,
-<<<<<<< HEAD
-    # `urdf2mjcf serve ...` serves one to ROS 2; anything else is a conversion, whose first
-    # argument is the SOURCE file (a file named 'cache', 'batch', 'verify', 'view' or
-    # 'serve' is given as ./cache, ./batch, ./verify, ./view, ./serve).
-=======
-    # `urdf2mjcf calibrate ...` fits one to a robot's logs; anything else is a conversion,
-    # whose first argument is the SOURCE file (a file named 'cache', 'batch', 'verify',
-    # 'view' or 'calibrate' is given as ./cache, ./batch, ./verify, ./view, ./calibrate).
->>>>>>> r36-calib
+    # `urdf2mjcf serve ...` serves one to ROS 2, `urdf2mjcf calibrate ...` fits one to a
+    # robot's logs, `urdf2mjcf excite ...` writes a trajectory to log them with; anything
+    # else is a conversion, whose first argument is the SOURCE file (a file named 'cache',
+    # 'batch', 'verify', 'view', 'serve', 'calibrate' or 'excite' is given as ./NAME).
     args = sys.argv[1:]
     if args[:1] == ["view"]:
         run_command(view_command, args[1:], prog_name="urdf2mjcf view")
