@@ -44,6 +44,7 @@ def _bounds() -> dict[str, str]:
         "xacro_budget.MAX_ITEMS": f"{xacro_budget.MAX_ITEMS:,} items",
         "xacro_budget.MAX_INT_BITS": f"{xacro_budget.MAX_INT_BITS:,} bits",
         "xacro_install.MAX_MACRO_CALLS": f"{xacro_install.MAX_MACRO_CALLS:,} macro calls",
+        "xacro_install.MAX_MACRO_DEPTH": f"{xacro_install.MAX_MACRO_DEPTH:,} levels",
         "xacro_install.MAX_INCLUDES": f"{xacro_install.MAX_INCLUDES:,} includes",
         "scatter.COUNT_MAX": f"{scatter.COUNT_MAX:,} rocks",
         "scatter.TRY_MAX": f"{scatter.TRY_MAX:,} draws",

@@ -126,7 +126,7 @@ G_MADE = "xacro guard.made"
 G_STAR = "xacro guard.unpack"
 G_FORMAT = "xacro guard.format"
 G_FSTRING = "xacro guard.fstring"
-_GUARD_NAMES = (
+GUARD_NAMES = (
     G_ATTR,
     G_ITEM,
     G_SLICE,
@@ -726,7 +726,7 @@ def _describe(obj: Any) -> str:
 def _check_shadowing(symbols: Any) -> None:
     """Refuse when a symbol table holds a guard's name (an include's ``ns`` or a
     macro parameter can name anything): the guard would not be the one called."""
-    for name in _GUARD_NAMES:
+    for name in GUARD_NAMES:
         if name in symbols:
             raise Refused(f"the name '{name}' is reserved")
 
