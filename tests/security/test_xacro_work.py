@@ -68,7 +68,10 @@ def _link(expression: str) -> str:
         ("len([python.all([1] * 10**6) for i in range(1000)])", (WORK, MEMORY)),
         ("len([''.join(map(str, range(10**6))) for i in range(1000)])", (WORK,)),
         # one string past the text bound; a thousand strings each just under it
-        ("len('x' * 10**9)", ("over the bound of 10,000,000 characters",)),
+        (
+            "len('x' * 10**9)",
+            ("1 character repeated 1,000,000,000 times, over the bound of 10,000,000 characters",),
+        ),
         ("len(['x' * 10**7 for i in range(1000)])", (MEMORY,)),
         ("len([[i * j for i in range(10**5)] for j in range(10**5)])", (WORK,)),
     ],

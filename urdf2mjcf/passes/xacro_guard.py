@@ -693,7 +693,9 @@ def _check_operands(op: str, a: Any, b: Any) -> None:
         if isinstance(seq, _SEQUENCES) and isinstance(n, int):
             limit, bound = _limit(seq)
             if len(seq) * n > limit:
-                raise too_big(f"{len(seq):,} items repeated {n:,} times", bound)
+                unit = "characters" if isinstance(seq, (str, bytes)) else "items"
+                unit = unit if len(seq) != 1 else unit[:-1]
+                raise too_big(f"{len(seq):,} {unit} repeated {n:,} times", bound)
         if ints and a.bit_length() + b.bit_length() > MAX_INT_BITS:
             raise too_big("a product of this size", f"{MAX_INT_BITS:,} bits")
     elif op == "**" and ints and b > 0 and abs(a) > 1:
