@@ -326,13 +326,14 @@ def _index(loader: Loader, root: Any) -> dict[Key, int]:
     return lines
 
 
-def parse(text: str) -> tuple[Any, dict[Key, int]]:
-    """YAML text's data and the line of each key, read by our :class:`Loader`;
+def parse(text: str | bytes, loader_type: type[Loader] = Loader) -> tuple[Any, dict[Key, int]]:
+    """YAML text's data and the line of each key, read by our :class:`Loader` (or
+    ``loader_type``, a subclass with tags of its own);
     yaml.YAMLError when it is not YAML, when its aliases expand it past
     :data:`urdf2mjcf.untrusted.YAML_MAX_NODES` nodes (a 'billion laughs' document:
     refused before it is built), and :class:`Refused` (a YAMLError) when a mapping
     holds a key twice or a plain scalar is read differently by YAML 1.1 and 1.2."""
-    loader = Loader(text)
+    loader = loader_type(text)
     try:
         node = loader.get_single_node()
         if node is not None:

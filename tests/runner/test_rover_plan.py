@@ -20,8 +20,22 @@ import yaml
 
 from urdf2mjcf.command_runner import run_command
 from urdf2mjcf.envs import build as env_build
-from urdf2mjcf.runner.rover import ArmWave, Hold, RoverSim, Straight, Turn, rover_drive_command
-from urdf2mjcf.runner.rover.plan_file import TASKS_MAX, check_plan, check_shape, read_plan
+from urdf2mjcf.runner.rover import (
+    ArmWave,
+    Hold,
+    RoverSim,
+    Straight,
+    Turn,
+    plan_file,
+    rover_drive_command,
+)
+from urdf2mjcf.runner.rover.plan_file import (
+    PLAN_SECONDS_MAX,
+    TASKS_MAX,
+    check_plan,
+    check_shape,
+    read_plan,
+)
 from urdf2mjcf.runner.rover.tasks import DRIVES, TASKS, keys_table
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -161,6 +175,20 @@ BAD = [
     ),
     ("rovers: rover\n" + _plan("  - {kind: hold}\n"), "rovers", "needs a non-empty list"),
     ("rovers: [rover, rover]\n" + _plan("  - {kind: hold}\n"), "rovers[1]", "named twice"),
+    # the issue's: 1,000 holds of 100 s; the least time of drives and turns counts too
+    (
+        _plan("  - {kind: hold, duration: 100}\n" * TASKS_MAX),
+        "tasks[6]",
+        f"brings the plan's time to at least 700 s; a plan may run at most "
+        f"{PLAN_SECONDS_MAX:g} s simulated",
+    ),
+    (
+        _plan(
+            "  - {kind: straight, distance: 1000, speed: 2}\n  - {kind: turn, angle_deg: 3600}\n"
+        ),
+        "tasks[1]",
+        "brings the plan's time to at least 620 s",
+    ),
     # against the bundle: its rovers, their arm joints
     ("rovers: [rover, collector]\n" + _plan("  - {kind: hold}\n"), "rovers[1]", "no rover"),
     (
@@ -240,3 +268,29 @@ def test_the_docs_list_the_registrys_kinds_and_keys(floor, tmp_path, monkeypatch
         run_command(rover_drive_command, [str(floor), "--plan", "plan.yaml"])
     line = capsys.readouterr().err.strip()
     assert line.startswith("error: plan.yaml: tasks[2].distance") and line in section.splitlines()
+
+
+def test_a_plan_that_runs_past_its_bound_is_stopped_naming_the_task(
+    floor, tmp_path, capsys, monkeypatch
+):
+    # within the bound at the least (0.6 s at 0.5 m/s) but ramping up and braking takes
+    # longer: the run stops when the plan's time is spent, at the task running then
+    monkeypatch.setattr(plan_file, "PLAN_SECONDS_MAX", 1.0)
+    plan = tmp_path / "plan.yaml"
+    plan.write_text(_plan("  - {kind: hold, duration: 0.2}\n  - {kind: straight, distance: 0.3}\n"))
+    report = tmp_path / "r.json"
+    with pytest.raises(SystemExit) as done:
+        args = [str(floor), "--plan", str(plan), "--settle", "0", "--report", str(report)]
+        run_command(rover_drive_command, args, prog_name="rover-drive")
+    err = capsys.readouterr().err
+    assert done.value.code == 2, err
+    (line,) = [x for x in err.splitlines() if x.startswith("error: ")]
+    assert line.startswith(f"error: {plan}: tasks[1]"), line
+    assert "not done when the plan reached its bound of 1 s simulated" in line
+    assert not report.exists()
+
+
+def test_the_docs_give_the_plans_time_bound():
+    text = (ROOT / "docs" / "mira3d.md").read_text()
+    section = text.split("## Task plans", 1)[1].split("\n## ", 1)[0]
+    assert f"at most {PLAN_SECONDS_MAX:g} s of simulated time" in section

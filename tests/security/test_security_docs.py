@@ -34,7 +34,7 @@ def _bounds() -> dict[str, str]:
     from urdf2mjcf.facility import scatter
     from urdf2mjcf.runner import cli as runner_cli
     from urdf2mjcf.runner import waypoints
-    from urdf2mjcf.runner.rover import sim
+    from urdf2mjcf.runner.rover import plan_file, sim
 
     return {
         "ValidateConfig.max_steps": f"{ValidateConfig.max_steps:,} steps",
@@ -44,13 +44,16 @@ def _bounds() -> dict[str, str]:
         "xacro_budget.MAX_ITEMS": f"{xacro_budget.MAX_ITEMS:,} items",
         "xacro_budget.MAX_INT_BITS": f"{xacro_budget.MAX_INT_BITS:,} bits",
         "xacro_install.MAX_MACRO_CALLS": f"{xacro_install.MAX_MACRO_CALLS:,} macro calls",
+        "xacro_install.MAX_MACRO_DEPTH": f"{xacro_install.MAX_MACRO_DEPTH:,} levels",
         "xacro_install.MAX_INCLUDES": f"{xacro_install.MAX_INCLUDES:,} includes",
         "scatter.COUNT_MAX": f"{scatter.COUNT_MAX:,} rocks",
         "scatter.TRY_MAX": f"{scatter.TRY_MAX:,} draws",
         "runner.cli.TRIALS_MAX": f"{runner_cli.TRIALS_MAX:,} trials",
         "waypoints.DURATION_MAX": f"{waypoints.DURATION_MAX:g} s",
+        "waypoints.SECONDS_MAX": f"{waypoints.SECONDS_MAX:g} s",
         "waypoints.STEPS_MAX": f"{waypoints.STEPS_MAX:,} steps",
         "rover.sim.SETTLE_MAX": f"{sim.SETTLE_MAX:g} s",
+        "rover.plan_file.PLAN_SECONDS_MAX": f"{plan_file.PLAN_SECONDS_MAX:g} s",
         "rover.sim.TASK_TIMEOUT": f"{sim.TASK_TIMEOUT:g} s",
         "mjcf_files.ELEMENTS_MAX": f"{mjcf_files.ELEMENTS_MAX:,} elements",
         "mjcf_files.DOCUMENTS_MAX": f"{mjcf_files.DOCUMENTS_MAX:,} files",

@@ -36,7 +36,8 @@ MAX_INT_BITS = 100_000
 """Largest integer an expression may compute (about 30,000 digits)."""
 MAX_WORK = 100_000_000
 """Steps of work one expansion may do, all its expressions and elements together
-(the largest description we test, the MIRA3D world, takes under 2,000,000)."""
+(the largest description we test, the MIRA3D world with its recipe's arguments,
+takes under 16,000,000)."""
 MAX_MEMORY = 512 * 2**20
 """Bytes one expansion may make: values, expanded text, elements (the MIRA3D
 world makes under 20 MB)."""

@@ -126,7 +126,7 @@ G_MADE = "xacro guard.made"
 G_STAR = "xacro guard.unpack"
 G_FORMAT = "xacro guard.format"
 G_FSTRING = "xacro guard.fstring"
-_GUARD_NAMES = (
+GUARD_NAMES = (
     G_ATTR,
     G_ITEM,
     G_SLICE,
@@ -693,7 +693,9 @@ def _check_operands(op: str, a: Any, b: Any) -> None:
         if isinstance(seq, _SEQUENCES) and isinstance(n, int):
             limit, bound = _limit(seq)
             if len(seq) * n > limit:
-                raise too_big(f"{len(seq):,} items repeated {n:,} times", bound)
+                unit = "characters" if isinstance(seq, (str, bytes)) else "items"
+                unit = unit if len(seq) != 1 else unit[:-1]
+                raise too_big(f"{len(seq):,} {unit} repeated {n:,} times", bound)
         if ints and a.bit_length() + b.bit_length() > MAX_INT_BITS:
             raise too_big("a product of this size", f"{MAX_INT_BITS:,} bits")
     elif op == "**" and ints and b > 0 and abs(a) > 1:
@@ -726,7 +728,7 @@ def _describe(obj: Any) -> str:
 def _check_shadowing(symbols: Any) -> None:
     """Refuse when a symbol table holds a guard's name (an include's ``ns`` or a
     macro parameter can name anything): the guard would not be the one called."""
-    for name in _GUARD_NAMES:
+    for name in GUARD_NAMES:
         if name in symbols:
             raise Refused(f"the name '{name}' is reserved")
 

@@ -28,7 +28,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from .. import untrusted
+import yaml
+
+from .. import schema, untrusted
 from ..errors import ConversionError, XacroError
 from .xacro_budget import (
     MAX_ITEMS,
@@ -47,6 +49,7 @@ from .xacro_budget import (
 )
 from .xacro_guard import (
     EVAL_BUILTINS,
+    GUARD_NAMES,
     NAMESPACE_ALLOWED,
     Checked,
     Guards,
@@ -60,6 +63,10 @@ log = logging.getLogger(__name__)
 MAX_MACRO_CALLS = 20_000
 """Macro calls one expansion may make (our facility, the largest description we
 test, makes 365; a call costs up to a few milliseconds)."""
+MAX_MACRO_DEPTH = 100
+"""Macro calls one may nest inside another: a macro that calls itself once per item
+of a list nests as deep as the list is long (our iMETRO robot 38), and xacro
+recurses in Python, whose stack ends between 100 and 150 levels."""
 MAX_INCLUDES = 10_000
 """Files one expansion may include."""
 INCLUDE_BYTES = 20
@@ -191,9 +198,12 @@ class _Installer:
         written = "${" + expr + "}"
         try:
             code = self.compiled(expr)
+            # the check looks each guard's name up through every scope of the call
+            depth = getattr(globals, "depth", 0)
+            self.budget.work(len(GUARD_NAMES) * NAME_STEPS * (1 + depth))
             _check_shadowing(globals)
             globals.update(__builtins__=self.expr_builtins)  # as stock, plus the guards
-            result = self._evaluate(code, globals, locals, getattr(globals, "depth", 0))
+            result = self._evaluate(code, globals, locals, depth)
             self._joined(result)
             return result
         except Refused as exc:
@@ -297,6 +307,45 @@ class _Installer:
             return original(node, macros, symbols)
 
         return eval_all
+
+    # a macro's expansion, a block or an included file put in place of its element
+    def replace_node(self, original: Callable[..., Any]) -> Callable[..., Any]:
+        budget = self.budget
+
+        def replace_node(node: Any, by: Any, content_only: bool = False) -> Any:
+            # minidom finds the element among its parent's children (list.index) for
+            # each node it inserts and once to remove it: a macro that calls itself
+            # twice piles thousands of elements into one parent, quadratic work no
+            # element count sees (14 levels of it took 13 s)
+            parent = node.parentNode
+            moved = 1
+            if by is not None:
+                for doc in by if isinstance(by, list) else [by]:
+                    moved += len(doc.childNodes) if content_only else 1
+            try:
+                budget.work(moved * (1 + len(parent.childNodes) if parent else 1))
+            except Refused as exc:
+                raise self.refused(exc.reason) from None
+            return original(node, by, content_only)
+
+        return replace_node
+
+    # a macro called inside this many others
+    def nested(self, original: Callable[..., Any]) -> Callable[..., Any]:
+        x = self.x
+
+        def handle_macro_call(node: Any, macros: Any, symbols: Any) -> Any:
+            # every other xacro: element is handled before xacro asks this
+            if node.tagName.startswith("xacro:") and len(x.macrostack) >= MAX_MACRO_DEPTH:
+                raise XacroError(
+                    f"macro '{x.macrostack[-1].body.getAttribute('name')}' calls "
+                    f"'{node.tagName[6:]}' nested more than {MAX_MACRO_DEPTH} deep "
+                    "(refused: a description that calls itself without end)",
+                    file=x.filestack[-1] if x.filestack else self.source,
+                )
+            return original(node, macros, symbols)
+
+        return handle_macro_call
 
     # macro calls; includes
     def counted(
@@ -408,17 +457,16 @@ class _Installer:
             raise Refused(exc.detail) from None
         x.filestack.append(path)
         try:
-            loader = _unit_loader(x)(data)
-            try:
-                node = loader.get_single_node()
-                if node is not None:
-                    untrusted.check_yaml_size(node)
-                value = loader.construct_document(node) if node is not None else None
-            finally:
-                loader.dispose()
+            # our reader, as for every YAML file: no key twice, no YAML 1.1 reading
+            # (a calibration's 1:30 is not 90), no alias bomb
+            value, _ = schema.parse(data, _unit_loader(x))
             return self.budget.made(x.YamlListWrapper.wrap(value))
-        except untrusted.YamlBombError as exc:
-            raise Refused(f"YAML file {path} {exc}") from None
+        except yaml.MarkedYAMLError as exc:
+            mark = exc.problem_mark
+            where = f" line {mark.line + 1}" if mark else ""
+            raise Refused(f"YAML file {path}{where}: {exc.problem}") from None
+        except yaml.YAMLError as exc:
+            raise Refused(f"YAML file {path}: {untrusted.excerpt(str(exc), 200)}") from None
         finally:
             x.filestack.pop()
             x.all_includes.append(path)
@@ -485,11 +533,10 @@ def _allowed_roots(folders: Sequence[Path]) -> list[str]:
 
 
 def _unit_loader(x: Any) -> type:
-    """A SafeLoader with xacro's ``!degrees``-style unit tags, on a private subclass
+    """Our YAML loader with xacro's ``!degrees``-style unit tags, on a private subclass
     (stock xacro adds them to yaml.SafeLoader for the whole process)."""
-    import yaml
 
-    class UnitLoader(yaml.SafeLoader):
+    class UnitLoader(schema.Loader):
         pass
 
     for unit in x.ConstructUnits:
@@ -521,6 +568,7 @@ def installed(roots: Callable[[], Sequence[Path]], source: Path) -> Iterator[Non
         glob.get("__builtins__", _MISSING),
         xacro.eval_all,
         xacro.eval_extension,
+        xacro.replace_node,
     )
 
     def deprecated_load_yaml(filename: Any) -> Any:
@@ -531,10 +579,13 @@ def installed(roots: Callable[[], Sequence[Path]], source: Path) -> Iterator[Non
     xacro.parse = inst.parse(saved[1])
     sa._eval = inst.eval_extension
     xacro.eval_text = inst.eval_text(saved[3])
-    xacro.handle_macro_call = inst.counted(saved[4], MAX_MACRO_CALLS, "macro calls", [0])
+    xacro.handle_macro_call = inst.nested(
+        inst.counted(saved[4], MAX_MACRO_CALLS, "macro calls", [0])
+    )
     xacro.process_include = inst.counted(saved[5], MAX_INCLUDES, "includes", [0])
     xacro.eval_all = inst.eval_all(saved[9])
     xacro.eval_extension = inst.substitution(saved[10])
+    xacro.replace_node = inst.replace_node(saved[11])
     load_yaml = inst.load_yaml  # one bound method: the one registered is the one called
     dict.__setitem__(xacro_ns, "load_yaml", load_yaml)
     glob["load_yaml"] = deprecated_load_yaml
@@ -552,7 +603,7 @@ def installed(roots: Callable[[], Sequence[Path]], source: Path) -> Iterator[Non
         )
         xacro.safe_eval, xacro.parse, sa._eval = saved[:3]
         xacro.eval_text, xacro.handle_macro_call, xacro.process_include = saved[3:6]
-        xacro.eval_all, xacro.eval_extension = saved[9:11]
+        xacro.eval_all, xacro.eval_extension, xacro.replace_node = saved[9:12]
         dict.__setitem__(xacro_ns, "load_yaml", saved[6])
         glob["load_yaml"] = saved[7]
         if saved[8] is _MISSING:

@@ -16,7 +16,7 @@ from typing import Any
 from ..errors import FacilityError
 from ..limits import ANGLE_MAX, LENGTH_MAX
 from ..schema import Source
-from ..untrusted import BadNumber, excerpt, read_number
+from ..untrusted import NUMBER_TEXT_MAX, BadNumber, excerpt, read_number
 from ..untrusted import shown as quoted
 
 Check = Callable[[Any, str, "Waypoints"], None]
@@ -62,7 +62,9 @@ def _number(
     """A finite float in [low, high] (``(low, high]`` with ``low_open``): a YAML number,
     not text (:func:`urdf2mjcf.untrusted.read_number`)."""
     if isinstance(value, str):  # "0.5" in quotes, or a number too long to be one
-        raise w.fail(where, f"'{quoted(value)}' is not a number")
+        long = len(value) > NUMBER_TEXT_MAX
+        why = f" ({len(value):,} characters; at most {NUMBER_TEXT_MAX})" if long else ""
+        raise w.fail(where, f"'{quoted(value)}' is not a number{why}")
     try:
         return read_number(value, low=low, high=high, low_open=low_open)
     except BadNumber as exc:

@@ -101,6 +101,23 @@ TOP: dict[str, Check] = {
 }
 
 
+SECONDS_MAX = 600.0
+"""s simulated: the durations, waits, holds and settle times a waypoints file writes,
+all its steps and its final wait together (a hinge step's ``step_time`` once per hinge
+step); each is also at most ``DURATION_MAX``. The demo's own write 12.6 s."""
+_TIMED = (duration, seconds)
+
+
+def _written_seconds(step: Mapping, keys: Mapping[str, Check]) -> float:
+    """The simulated seconds ``step`` (checked) writes: its durations, waits, holds and
+    settle times; a hinge step's time per hinge step times its steps."""
+    total = 0.0
+    for key, value in step.items():
+        if keys.get(key) in _TIMED:
+            total += float(value) * (step.get("steps", 8) if key == "step_time" else 1)
+    return total
+
+
 def _step_at(i: int, step: Any) -> str:
     label = step.get("name") if isinstance(step, Mapping) else None
     return f"steps[{i}]" + (f" '{label}'" if isinstance(label, str) else "")
@@ -119,6 +136,7 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
     if len(steps) > STEPS_MAX:
         raise w.fail("steps", f"has {len(steps)} steps; at most {STEPS_MAX}")
     seen: set[str] = set()
+    total = 0.0
     for i, step in enumerate(steps):
         at = _step_at(i, step)
         if not isinstance(step, Mapping):
@@ -138,7 +156,21 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
             raise w.fail(at, "give both tool axes z and x, or neither")
         if "z" in step and _parallel(step["z"], step["x"]):
             raise w.fail(f"{at}.x", "is parallel to z; the tool axes need two directions")
+        total = _add_seconds(total, _written_seconds(step, {**COMMON, **keys}), at, w)
+    _add_seconds(total, float(spec.get("final_wait", 0.0)), "final_wait", w)
     return dict(spec)
+
+
+def _add_seconds(total: float, seconds: float, at: str, w: Waypoints) -> float:
+    """``total + seconds``; an error naming ``at`` when it passes :data:`SECONDS_MAX`."""
+    total += seconds
+    if total > SECONDS_MAX:
+        raise w.fail(
+            at,
+            f"brings the times the file writes to {total:g} s; a waypoints file may "
+            f"write at most {SECONDS_MAX:g} s simulated",
+        )
+    return total
 
 
 def _parallel(z: list[float], x: list[float]) -> bool:

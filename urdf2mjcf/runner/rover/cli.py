@@ -17,9 +17,16 @@ from ..live_options import check_allow_origin, live_options
 from ..trial_options import trial_options
 from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
 from .drift import PathLog, check_plot, drift_line, write_plot
-from .plan_file import Plan, check_plan, options_plan, read_plan
+from .plan_file import (
+    Plan,
+    check_plan,
+    options_plan,
+    past_bound,
+    read_plan,
+    run_seconds,
+)
 from .roles import RoverError
-from .sim import SETTLE_MAX, RoverSim
+from .sim import SETTLE_MAX, TASK_TIMEOUT, RoverSim
 from .tasks import DISTANCE_MAX, DRIVES, RATE_MAX, SPEED_MAX, TURN_MAX
 
 PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
@@ -323,8 +330,16 @@ def _drive(
             paths.append(PathLog(sim, sim.rovers))
             sim.on_step.append(paths[-1].step)
         results: list[dict] = []
-        for spec in plan.tasks:
-            for r in DRIVES[spec["kind"]].run(sim, spec, chosen, plan.arm).values():
+        start = sim.d.time
+        for i, spec in enumerate(plan.tasks):
+            left = run_seconds(sim.d.time - start, TASK_TIMEOUT)
+            try:
+                reports = DRIVES[spec["kind"]].run(sim, spec, chosen, plan.arm, timeout=left)
+            except RoverError:
+                if left < TASK_TIMEOUT:  # stopped by the plan's bound, not the task's
+                    raise past_bound(plan, i) from None
+                raise
+            for r in reports.values():
                 click.echo(r.summary())
                 click.echo(drift_line(r.rover, r.task, r.drift))
                 results.append(asdict(r))

@@ -27,12 +27,17 @@ from ...errors import FacilityError
 from ...schema import Source, load
 from ..checks import Waypoints, _mapping, name
 from .roles import Rover
-from .tasks import TASKS
+from .tasks import DRIVES, TASKS
 
 TASKS_MAX = 1_000
 """Most tasks a plan may hold."""
 ROVERS_MAX = 100
 """Most rovers a plan may name."""
+PLAN_SECONDS_MAX = 600.0
+"""s simulated: the longest a plan may run, all its tasks together (each task also
+ends within ``sim.TASK_TIMEOUT``). A plan whose tasks take longer at the least (each
+drive at its top speed, each turn at its top rate, each hold) is refused before
+anything moves; one that runs past it is stopped with an error."""
 
 
 @dataclass(frozen=True)
@@ -95,9 +100,38 @@ def check_shape(data: Any, path: Path | None, source: Source | None = None) -> P
     if len(tasks) > TASKS_MAX:
         raise w.fail("tasks", f"has {len(tasks)} tasks; at most {TASKS_MAX}")
     checked = tuple(check_task(t, f"tasks[{i}]", w) for i, t in enumerate(tasks))
+    _check_total(checked, w)
     arm = check_task(data["arm"], "arm", w, arm=True) if "arm" in data else None
     rovers = tuple(data["rovers"]) if "rovers" in data else None
     return Plan(rovers, checked, arm, w)
+
+
+def _check_total(tasks: Sequence[Mapping], w: Waypoints) -> None:
+    """The tasks' least time together within :data:`PLAN_SECONDS_MAX`; else an error
+    naming the task where the sum passes it."""
+    total = 0.0
+    for i, spec in enumerate(tasks):
+        total += DRIVES[spec["kind"]].least_seconds(spec)
+        if total > PLAN_SECONDS_MAX:
+            raise w.fail(
+                f"tasks[{i}]",
+                f"brings the plan's time to at least {total:g} s; a plan may run at most "
+                f"{PLAN_SECONDS_MAX:g} s simulated",
+            )
+
+
+def run_seconds(elapsed: float, task_timeout: float) -> float:
+    """Simulated seconds a task may run ``elapsed`` seconds into a plan: its own bound,
+    ``task_timeout``, or what is left of :data:`PLAN_SECONDS_MAX`."""
+    return max(0.0, min(task_timeout, PLAN_SECONDS_MAX - elapsed))
+
+
+def past_bound(plan: Plan, i: int) -> FacilityError:
+    """The error of a plan stopped at task ``i`` by :data:`PLAN_SECONDS_MAX`."""
+    return plan.where.fail(
+        f"tasks[{i}]",
+        f"not done when the plan reached its bound of {PLAN_SECONDS_MAX:g} s simulated",
+    )
 
 
 def read_plan(path: str | Path) -> Plan:

@@ -211,14 +211,26 @@ class DriveKind(TaskKind):
     def build(self, spec: Mapping) -> Task:
         raise NotImplementedError
 
+    def least_seconds(self, spec: Mapping) -> float:
+        """Simulated seconds the (checked) task takes at the least: its distance at its top
+        speed, its angle at its top rate, its hold."""
+        raise NotImplementedError
+
     def run(
-        self, sim: Any, spec: Mapping, names: Sequence[str], arm: Mapping | None = None
+        self,
+        sim: Any,
+        spec: Mapping,
+        names: Sequence[str],
+        arm: Mapping | None = None,
+        timeout: float | None = None,
     ) -> dict[str, Any]:
         """Run the task on the rovers ``names`` of ``sim`` (a RoverSim, untyped here: ``sim``
         imports this module) at the same time, each with the arm motion ``arm`` (a checked
-        mapping) if given; their reports, as ``RoverSim.run`` gives them."""
+        mapping) if given, for at most ``timeout`` simulated seconds (None: the sim's
+        bound on one task); their reports, as ``RoverSim.run`` gives them."""
         waves = {n: TASKS[arm["kind"]].build(arm) for n in names} if arm else None
-        return sim.run({n: self.build(spec) for n in names}, arm=waves)
+        limit = {} if timeout is None else {"timeout": timeout}
+        return sim.run({n: self.build(spec) for n in names}, arm=waves, **limit)
 
 
 TASKS: dict[str, TaskKind] = {}
@@ -243,6 +255,9 @@ class StraightKind(DriveKind):
     }
     required = ("distance",)
 
+    def least_seconds(self, spec: Mapping) -> float:
+        return abs(float(spec["distance"])) / float(self.value(spec, "speed"))
+
     def build(self, spec: Mapping) -> Straight:
         return Straight(
             float(spec["distance"]),
@@ -262,6 +277,9 @@ class TurnKind(DriveKind):
     }
     required = ("angle_deg",)
 
+    def least_seconds(self, spec: Mapping) -> float:
+        return abs(float(spec["angle_deg"])) / float(self.value(spec, "rate_deg"))
+
     def build(self, spec: Mapping) -> Turn:
         return Turn(
             math.radians(float(spec["angle_deg"])),
@@ -274,6 +292,9 @@ class TurnKind(DriveKind):
 class HoldKind(DriveKind):
     kind = "hold"
     keys = {"duration": _number(0.0, HOLD_MAX, "s", "stand still, wheels held", 1.0)}
+
+    def least_seconds(self, spec: Mapping) -> float:
+        return float(self.value(spec, "duration"))
 
     def build(self, spec: Mapping) -> Hold:
         return Hold(float(self.value(spec, "duration")))
