@@ -49,6 +49,17 @@ def test_a_fifo_at_an_output_of_rover_drive_is_refused_at_once(floor, tmp_path, 
     assert [p.name for p in tmp_path.iterdir()] == [name]
 
 
+@pytest.mark.parametrize(("option", "name"), [("--report", "out.json"), ("--record", "out.mcap")])
+def test_a_fifo_at_an_output_of_facility_demo_is_refused_at_once(
+    imetro_bundle, tmp_path, option, name
+):
+    fifo = tmp_path / name
+    os.mkfifo(fifo)
+    res = run("facility-demo", str(imetro_bundle), option, str(fifo), cwd=tmp_path, timeout=TIMEOUT)
+    assert_one_error(res, name, "is a FIFO")
+    assert [p.name for p in tmp_path.iterdir()] == [name]
+
+
 def test_a_fifo_at_the_report_of_a_conversion_is_refused_at_once(tmp_path):
     (tmp_path / "r.urdf").write_text(URDF)
     os.mkfifo(tmp_path / "r.json")
