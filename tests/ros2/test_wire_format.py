@@ -168,3 +168,15 @@ def test_cdr_that_is_cut_short_or_big_endian_is_refused():
     for bad in (data[:-3], b"\x00\x00\x00\x00" + data[4:], data[:12] + b"\xff\xff\xff\x7f"):
         with pytest.raises(ValueError):
             dec(bad)
+
+
+def test_an_actions_status_array_read_back_by_rosbags():
+    # the action's status topic: goal ids (16 bytes), stamps and int8 statuses in CDR
+    store = _rosbags_store()
+    name = "action_msgs/msg/GoalStatusArray"
+    goal = {"goal_id": {"uuid": list(range(16))}, "stamp": {"sec": 5, "nanosec": 6}}
+    msg = {"status_list": [{"goal_info": goal, "status": 4}, {"goal_info": goal, "status": 2}]}
+    theirs = store.deserialize_cdr(cdr.encoder(name, interfaces.definition_text(name))(msg), name)
+    assert [s.status for s in theirs.status_list] == [4, 2]
+    assert theirs.status_list[0].goal_info.goal_id.uuid.tolist() == list(range(16))
+    assert theirs.status_list[1].goal_info.stamp.nanosec == 6

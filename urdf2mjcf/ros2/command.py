@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import ipaddress
-import os
 import re
 from pathlib import Path
 from typing import Any
@@ -11,85 +9,20 @@ from typing import Any
 import click
 
 from ..cli_common import configure_logging
-from ..cli_types import BoundedInt, FiniteFloat
+from ..cli_types import FiniteFloat
 from ..errors import ConversionError
-from ..extras import require
 from ..untrusted import printable
 from ..view.live import PACE_MAX
-
-_ENDPOINT = re.compile(r"^tcp/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.\-]+):(?P<port>\d{1,5})$")
-DOMAIN_MAX = 232
-"""The largest ROS_DOMAIN_ID ROS 2 documents."""
+from .options import ros2_options, transport
 
 
 class ServeError(ConversionError):
     """The model cannot be served as given."""
 
 
-class ZenohEndpoint(click.ParamType):
-    """``tcp/HOST:PORT``; with ``listen``, HOST an address of this machine: loopback
-    (127.0.0.1, [::1], localhost) or an interface's own address the user names, never
-    a wildcard (0.0.0.0, [::]) that would listen on every interface."""
-
-    name = "tcp/HOST:PORT"
-
-    def __init__(self, listen: bool) -> None:
-        self.listen = listen
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        text = str(value)
-        m = _ENDPOINT.match(text)
-        if m is None or int(m["port"]) > 65535:
-            self.fail(f"'{printable(text)[:60]}' is not tcp/HOST:PORT", param, ctx)
-        host = m["host"].strip("[]")
-        if self.listen and host != "localhost":
-            try:
-                address = ipaddress.ip_address(host)
-            except ValueError:
-                self.fail(
-                    f"listen on an address (like 127.0.0.1), not the name '{host}'", param, ctx
-                )
-            if address.is_unspecified:
-                self.fail(
-                    f"{host} listens on every interface: name the interface's own address",
-                    param,
-                    ctx,
-                )
-        return text
-
-
-def _default_domain() -> int:
-    text = os.environ.get("ROS_DOMAIN_ID", "").strip()
-    if not text:
-        return 0
-    if not text.isdigit() or int(text) > DOMAIN_MAX:
-        raise click.UsageError(f"ROS_DOMAIN_ID={printable(text)[:20]} is not 0..{DOMAIN_MAX}")
-    return int(text)
-
-
 @click.command("urdf2mjcf serve", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("model", type=click.Path(path_type=Path, exists=True))
-@click.option("--ros2", is_flag=True, help="Serve to ROS 2 over rmw_zenoh (the transport served).")
-@click.option(
-    "--zenoh-connect",
-    multiple=True,
-    type=ZenohEndpoint(listen=False),
-    help="A Zenoh router (rmw_zenohd) or peer to connect to (repeatable; default "
-    "tcp/localhost:7447, rmw_zenoh's router, unless --zenoh-listen is given).",
-)
-@click.option(
-    "--zenoh-listen",
-    multiple=True,
-    type=ZenohEndpoint(listen=True),
-    help="Listen for ROS nodes at tcp/HOST:PORT (repeatable): a loopback address, or an "
-    "interface's own address only when named.",
-)
-@click.option(
-    "--ros-domain",
-    type=BoundedInt(0, DOMAIN_MAX),
-    default=None,
-    help="ROS domain (default: $ROS_DOMAIN_ID, else 0).",
-)
+@ros2_options("Serve to ROS 2 over rmw_zenoh (the transport served).")
 @click.option(
     "--pace",
     type=FiniteFloat(0.0, PACE_MAX, low_open=True),
@@ -151,18 +84,16 @@ def serve_command(
         raise click.UsageError("name the transport: --ros2")
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", node_name):
         raise click.UsageError(f"--node-name '{printable(node_name)[:40]}' is not a ROS node name")
-    domain = _default_domain() if ros_domain is None else ros_domain
-    require("ros2", "urdf2mjcf serve --ros2")
+    chosen = transport(ros2, zenoh_connect, zenoh_listen, ros_domain, "urdf2mjcf serve --ros2")
+    assert chosen is not None  # --ros2 is given
+    domain = chosen.domain
     configure_logging(verbose, False)
 
     from .server import ServeConfig, serve
-    from .session import ROUTER, Endpoints
+    from .session import Endpoints
     from .world import build
 
-    if zenoh_listen or zenoh_connect:
-        endpoints = Endpoints(listen=zenoh_listen, connect=zenoh_connect)
-    else:  # as an rmw_zenoh node: the local router, and a loopback port for peers
-        endpoints = Endpoints(listen=("tcp/127.0.0.1:0",), connect=(ROUTER,))
+    endpoints = Endpoints(listen=chosen.listen, connect=chosen.connect)
     config = ServeConfig(
         endpoints=endpoints,
         domain=domain,

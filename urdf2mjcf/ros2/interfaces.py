@@ -77,6 +77,22 @@ MESSAGES: dict[str, str] = {
         "std_msgs/Header header\nstring child_frame_id\n"
         "geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist"
     ),
+    # what FollowJointTrajectory's goal and feedback carry beside a JointTrajectory
+    "trajectory_msgs/msg/MultiDOFJointTrajectoryPoint": (
+        "geometry_msgs/Transform[] transforms\ngeometry_msgs/Twist[] velocities\n"
+        "geometry_msgs/Twist[] accelerations\nbuiltin_interfaces/Duration time_from_start"
+    ),
+    "trajectory_msgs/msg/MultiDOFJointTrajectory": (
+        "std_msgs/Header header\nstring[] joint_names\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint[] points"
+    ),
+    # an action's goal ids and its status topic (rmw_zenoh's <action>/_action/status)
+    "unique_identifier_msgs/msg/UUID": "uint8[16] uuid",
+    "action_msgs/msg/GoalInfo": (
+        "unique_identifier_msgs/UUID goal_id\nbuiltin_interfaces/Time stamp"
+    ),
+    "action_msgs/msg/GoalStatus": "action_msgs/GoalInfo goal_info\nint8 status",
+    "action_msgs/msg/GoalStatusArray": "action_msgs/GoalStatus[] status_list",
     # what every service's Event message carries (rosidl adds it to each service)
     "service_msgs/msg/ServiceEventInfo": (
         "uint8 event_type\nbuiltin_interfaces/Time stamp\nchar[16] client_gid\n"

@@ -165,36 +165,8 @@ class Rovers(Extension):
         d, m = self.sim.d, self.sim.m
         stamp = _time(d.time)
         for name, r in self.sim.rovers.items():
-            odo = self.sim.odometry[name]
-            wl = float(np.mean(d.sensordata[r.left_vel]))
-            wr = float(np.mean(d.sensordata[r.right_vel]))
+            self._odom[name].publish(odometry(self.sim, name, stamp))
             base = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, r.base) or name
-            half = odo.yaw / 2
-            self._odom[name].publish(
-                {
-                    "header": {"stamp": stamp, "frame_id": f"{name}/odom"},
-                    "child_frame_id": base,
-                    "pose": {
-                        "pose": {
-                            "position": {"x": odo.x, "y": odo.y, "z": 0.0},
-                            "orientation": {
-                                "x": 0.0,
-                                "y": 0.0,
-                                "z": math.sin(half),
-                                "w": math.cos(half),
-                            },
-                        },
-                        "covariance": [0.0] * 36,
-                    },
-                    "twist": {
-                        "twist": {
-                            "linear": {"x": r.radius * (wl + wr) / 2, "y": 0.0, "z": 0.0},
-                            "angular": {"x": 0.0, "y": 0.0, "z": r.radius * (wr - wl) / r.track},
-                        },
-                        "covariance": [0.0] * 36,
-                    },
-                }
-            )
             q = d.sensordata[r.orientation : r.orientation + 4]
             gyro = d.sensordata[r.gyro : r.gyro + 3]
             acc = d.sensordata[r.accel : r.accel + 3]
@@ -210,3 +182,37 @@ class Rovers(Extension):
                     "linear_acceleration_covariance": [0.0] * 9,
                 }
             )
+
+
+def odometry(sim: RoverSim, name: str, stamp: dict[str, int]) -> dict[str, Any]:
+    """``/<rover>/odom``: rover ``name``'s wheel odometry (its pose from the encoders,
+    its twist from the wheels' speeds) as nav_msgs/Odometry."""
+    d, m, r = sim.d, sim.m, sim.rovers[name]
+    odo = sim.odometry[name]
+    wl = float(np.mean(d.sensordata[r.left_vel]))
+    wr = float(np.mean(d.sensordata[r.right_vel]))
+    base = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, r.base) or name
+    half = odo.yaw / 2
+    return {
+        "header": {"stamp": stamp, "frame_id": f"{name}/odom"},
+        "child_frame_id": base,
+        "pose": {
+            "pose": {
+                "position": {"x": odo.x, "y": odo.y, "z": 0.0},
+                "orientation": {
+                    "x": 0.0,
+                    "y": 0.0,
+                    "z": math.sin(half),
+                    "w": math.cos(half),
+                },
+            },
+            "covariance": [0.0] * 36,
+        },
+        "twist": {
+            "twist": {
+                "linear": {"x": r.radius * (wl + wr) / 2, "y": 0.0, "z": 0.0},
+                "angular": {"x": 0.0, "y": 0.0, "z": r.radius * (wr - wl) / r.track},
+            },
+            "covariance": [0.0] * 36,
+        },
+    }

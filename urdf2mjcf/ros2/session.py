@@ -69,6 +69,12 @@ class Publisher:
             self._pub = node.session.declare_publisher(key)
         self._sequence = 0
 
+    @property
+    def matched(self) -> bool:
+        """Whether a subscriber matches (a latched topic's cache: always)."""
+        status = getattr(self._pub, "matching_status", None)
+        return True if status is None else bool(status.matching)
+
     def publish(self, msg: dict[str, Any]) -> None:
         self._sequence += 1
         att = attachment.Attachment(self._sequence, time.time_ns(), self._gid)

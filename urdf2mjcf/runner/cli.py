@@ -21,6 +21,7 @@ import click
 from ..bundle import MANIFEST
 from ..cli_types import BoundedInt
 from ..limits import SEED_MAX
+from ..ros2.options import Transport, ros2_options, transport
 from .aggregate import aggregate, check_plot, plot_outcomes, plot_path, summary_lines
 from .executors import Kind, import_ray
 from .live_options import check_allow_origin, live_options
@@ -127,7 +128,11 @@ def _frames_folder(
     is_flag=True,
     help="replace a --report file, or write into a --frames folder, that we did not write",
 )
-@live_options("run", "--view or --foxglove", "; not with --trials")
+@live_options("run", "--view, --foxglove or --ros2", "; not with --trials")
+@ros2_options(
+    "publish the run to ROS 2 over rmw_zenoh while it runs (/clock and the --record "
+    "topics), paced by --pace; not with --trials (pip install 'mjcf-forge[ros2]')"
+)
 def facility_demo_command(
     scene: Path,
     waypoints: Path | None,
@@ -145,6 +150,10 @@ def facility_demo_command(
     pace: float,
     foxglove: int | None,
     foxglove_wait: bool,
+    ros2: bool = False,
+    zenoh_connect: tuple[str, ...] = (),
+    zenoh_listen: tuple[str, ...] = (),
+    ros_domain: int | None = None,
     allow_origins: tuple[str, ...] = (),
 ) -> None:
     """Replay the iMETRO logistics demo in SCENE (a built facility folder or its scene.xml)."""
@@ -190,6 +199,9 @@ def facility_demo_command(
         from ..extras import require
 
         require("live", "facility-demo --foxglove")
+    if ros2 and trials:
+        raise click.UsageError("--ros2 publishes one run, not --trials")
+    ros = transport(ros2, zenoh_connect, zenoh_listen, ros_domain, "facility-demo --ros2")
     if address and executor != "ray":
         raise click.UsageError("--address needs --executor ray")
     if address and workers:
@@ -241,6 +253,7 @@ def facility_demo_command(
                     if foxglove is not None
                     else None,
                     allow_origins,
+                    (ros, pace) if ros is not None else None,
                 )
             if report and plot_to is not None:
                 plot_outcomes(result["aggregate"], plot_to)
@@ -354,16 +367,27 @@ def _once(
     pace: float | None = None,
     stream: _Live | None = None,
     origins: tuple[str, ...] = (),
+    ros: tuple[Transport, float] | None = None,
 ) -> tuple[dict, bool]:
     """One run of the demo; the recording of ``record`` is written to ``record_to`` (its
     reserved file, renamed by the caller) when given; with ``pace``, the run is shown live
     at that pace (the view only reads the state; ``origins``: those its viewer answers
     besides its own page); with ``stream``, the recording's messages are served to
-    Foxglove while it runs."""
+    Foxglove while it runs; with ``ros`` (transport, pace), published to ROS 2."""
     from .demo import Demo
 
     demo = Demo(fac, spec, frames=frames, log=lambda *_: None)
-    recorder = foxglove = None
+    recorder = foxglove = ros2 = None
+    if ros is not None:
+        from ..ros2.live import Ros2Stream
+        from ..ros2.session import Endpoints
+
+        try:
+            endpoints = Endpoints(listen=ros[0].listen, connect=ros[0].connect)
+            ros2 = Ros2Stream(fac.data, endpoints, ros[0].domain, "facility_demo", pace=ros[1])
+        except BaseException:
+            demo.close()
+            raise
     if stream is not None:
         from .foxglove_live import FoxgloveStream
 
@@ -374,7 +398,7 @@ def _once(
         except BaseException:
             demo.close()
             raise
-    if record or foxglove is not None:
+    if record or foxglove is not None or ros2 is not None:
         from .noise import SensorNoise
         from .record import Recorder, facility_sources
 
@@ -388,10 +412,13 @@ def _once(
             (record_to or record) if record else None,
             generator=GENERATOR,
             noise=noise,
-            sinks=[foxglove] if foxglove is not None else (),
+            sinks=[s for s in (foxglove, ros2) if s is not None],
         )
         recorder.step()  # the start
         demo.sim.on_step.append(recorder.step)
+    if ros2 is not None:
+        click.echo(f"publishing to ROS 2 as node /facility_demo ({ros2.where})", err=True)
+        demo.sim.on_step.append(ros2.step)
     live = None
     try:
         if foxglove is not None and stream is not None:
@@ -418,6 +445,8 @@ def _once(
             live.close()
         if foxglove is not None:
             foxglove.close()
+        if ros2 is not None:
+            ros2.close()
     if recorder is not None and record:  # a failed demo is recorded too: that is when one looks
         recorder.close()
         click.echo(f"recorded {sum(recorder.counts.values())} messages to {record}")

@@ -12,6 +12,7 @@ import click
 
 from ...cli_types import BoundedInt, FiniteFloat
 from ...limits import SEED_MAX
+from ...ros2.options import Transport, ros2_options, transport
 from ..executors import Kind
 from ..live_options import check_allow_origin, live_options
 from ..trial_options import trial_options
@@ -115,7 +116,12 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
     is_flag=True,
     help="replace a --report, --record or --plot file we did not write",
 )
-@live_options("drive", "--view, --console or --foxglove")
+@live_options("drive", "--view, --console, --foxglove or --ros2")
+@ros2_options(
+    "publish the drive to ROS 2 over rmw_zenoh while it runs (/clock, /joint_states, /tf, "
+    "each rover's /<rover>/imu/data and /<rover>/odom), paced by --pace "
+    "(pip install 'mjcf-forge[ros2]')"
+)
 @click.option(
     "--console",
     is_flag=True,
@@ -169,6 +175,10 @@ def rover_drive_command(
     port: int,
     foxglove: int | None,
     foxglove_wait: bool,
+    ros2: bool = False,
+    zenoh_connect: tuple[str, ...] = (),
+    zenoh_listen: tuple[str, ...] = (),
+    ros_domain: int | None = None,
     allow_origins: tuple[str, ...] = (),
     task: str | None = None,
     trials: int | None = None,
@@ -191,6 +201,8 @@ def rover_drive_command(
         _check_plan_options(click.get_current_context())
     check_task_options(click.get_current_context(), task, trials, seed)
     if task is not None:
+        if ros2:
+            raise click.UsageError("--ros2 publishes a drive, not a --task run")
         run = TaskRun(scene, task, trials or 0, seed, workers, executor)
         task_command(run, report, overwrite)
         return
@@ -201,6 +213,7 @@ def rover_drive_command(
         from ...extras import require
 
         require("live", "rover-drive --foxglove")
+    ros = transport(ros2, zenoh_connect, zenoh_listen, ros_domain, "rover-drive --ros2")
     if report is not None:
         out.check_file(report, overwrite, "rover-drive")  # before driving, not after
     if record is not None:
@@ -234,6 +247,7 @@ def rover_drive_command(
             paths=logs if plot else None,
             stream=(foxglove, pace, foxglove_wait) if foxglove is not None else None,
             origins=allow_origins,
+            ros=(ros, pace) if ros is not None else None,
         )
         if plot_to is not None:
             write_plot(logs[0], results, plot_to.tmp)
@@ -277,6 +291,7 @@ def _drive(
     paths: list[PathLog] | None = None,
     stream: tuple[int, float, bool] | None = None,
     origins: tuple[str, ...] = (),
+    ros: tuple[Transport, float] | None = None,
 ) -> tuple[list[dict], dict[str, int]]:
     """Run ``plan``'s tasks in order, print each task's summary; the results and MuJoCo's
     warnings. ``names``: the rovers (--rover) where the plan names none. The
@@ -284,8 +299,9 @@ def _drive(
     the drive is shown live at that pace (it only reads the state); ``paths`` gets a
     :class:`PathLog` of the drive; ``stream`` (port, pace, wait): the recording's
     messages are served to Foxglove while it drives; ``origins``: those the viewer and
-    the stream answer besides our own page (``--allow-origin``)."""
-    recorder = live = foxglove = None
+    the stream answer besides our own page (``--allow-origin``); ``ros`` (transport,
+    pace): the recording's messages and each rover's odometry published to ROS 2."""
+    recorder = live = foxglove = ros2 = None
     try:
         sim = RoverSim(scene)
         for n in names:
@@ -297,7 +313,9 @@ def _drive(
             foxglove = FoxgloveStream(
                 sim.d, stream[0], pace=stream[1], name="rover-drive", origins=origins
             )
-        if record is not None or foxglove is not None:
+        if ros is not None:
+            ros2 = _ros2_stream(sim, *ros)
+        if record is not None or foxglove is not None or ros2 is not None:
             from ..record import Recorder, rover_sources
 
             sources = rover_sources(sim.m, sim.manifest, sim.rovers)
@@ -308,10 +326,13 @@ def _drive(
                 sources,
                 to,
                 generator="rover-drive",
-                sinks=[foxglove] if foxglove is not None else (),
+                sinks=[s for s in (foxglove, ros2) if s is not None],
             )
             recorder.step()  # the start
             sim.on_step.append(recorder.step)
+        if ros2 is not None:
+            click.echo(f"publishing to ROS 2 as node /rover_drive ({ros2.where})", err=True)
+            sim.on_step.append(ros2.step)
         if foxglove is not None and stream is not None:
             # Once every topic has its channel: a client sees them all when it connects.
             click.echo(f"streaming to Foxglove at {foxglove.address}", err=True)
@@ -356,4 +377,26 @@ def _drive(
             live.close()
         if foxglove is not None:
             foxglove.close()
+        if ros2 is not None:
+            ros2.close()
     return results, warnings
+
+
+def _ros2_stream(sim: RoverSim, ros: Transport, pace: float) -> Any:
+    """The drive's node: the recording's messages, /clock and each rover's odometry."""
+    from ...ros2.live import Ros2Stream
+    from ...ros2.rovers import odometry
+    from ...ros2.server import _time
+    from ...ros2.session import Endpoints
+
+    odom: dict[str, Any] = {}
+
+    def publish_odometry(node: Any) -> None:
+        stamp = _time(float(sim.d.time))
+        for name in sim.rovers:
+            if name not in odom:
+                odom[name] = node.publisher(f"/{name}/odom", "nav_msgs/msg/Odometry")
+            odom[name].publish(odometry(sim, name, stamp))
+
+    endpoints = Endpoints(listen=ros.listen, connect=ros.connect)
+    return Ros2Stream(sim.d, endpoints, ros.domain, "rover_drive", publish_odometry, pace)
