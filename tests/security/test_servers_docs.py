@@ -11,6 +11,8 @@ import click
 import pytest
 
 from urdf2mjcf import loopback_guard
+from urdf2mjcf.ros2 import server as ros2_server
+from urdf2mjcf.ros2 import session as ros2_session
 from urdf2mjcf.runner import foxglove_live, foxglove_server
 from urdf2mjcf.runner.rover import console
 from urdf2mjcf.view import studio_guard
@@ -42,6 +44,13 @@ def servers_table() -> str:
         f"{foxglove_server.QUEUE_BYTES // 2**20} MiB queued per client, "
         f"{_kib(foxglove_server.MESSAGE_MAX)} per client message, "
         f"{foxglove_server.OPEN_TIMEOUT_S:g} s to open a connection |",
+        "| ROS 2 node (`urdf2mjcf serve`, `--ros2`) | 127.0.0.1 (a free port), or "
+        "`--zenoh-listen tcp/HOST:PORT` (a wildcard 0.0.0.0 or [::] refused); it connects "
+        f"to `--zenoh-connect` (default {ros2_session.ROUTER}, rmw_zenohd's) | any Zenoh "
+        "peer, over Zenoh's own TCP protocol (no web page speaks it); no multicast scouting "
+        "| a bad command (length, NaN, unknown joint, times going back) dropped with one "
+        f"warning per {ros2_server.WARN_EVERY:g} s; a value outside its limits clipped, "
+        "said once |",
     ]
     return "\n".join(rows)
 
