@@ -88,21 +88,7 @@ class Report:
     def motion_limits(self) -> dict[str, dict[str, float]]:
         """URDF 1.2's acceleration, deceleration and jerk limits by joint: what MuJoCo does
         not enforce, kept for planners (rad/s^2 and rad/s^3, or m/s^2 and m/s^3)."""
-        if self.model is None:
-            return {}
-        out = {}
-        for joint in self.model.robot.joints:
-            limit = joint.limit
-            if limit is None:
-                continue
-            given = {
-                k: v
-                for k in ("acceleration", "deceleration", "jerk")
-                if (v := getattr(limit, k)) is not None
-            }
-            if given:
-                out[joint.name] = given
-        return out
+        return motion_limits(self.model)
 
     def summary(self) -> str:
         lines = [
@@ -141,3 +127,23 @@ class Report:
         if parts:
             words.append(f"{parts} decomposed")
         return ", ".join(words)
+
+
+MOTION_KEYS = ("acceleration", "deceleration", "jerk")
+"""URDF 1.2's motion limits of a joint's ``<limit>``, which MuJoCo does not enforce."""
+
+
+def motion_limits(model: Model | None) -> dict[str, dict[str, float]]:
+    """Joint name -> the URDF 1.2 motion limits its description states (only those given;
+    joints without any left out), in the model's joint order."""
+    if model is None:
+        return {}
+    out = {}
+    for joint in model.robot.joints:
+        limit = joint.limit
+        if limit is None:
+            continue
+        given = {k: v for k in MOTION_KEYS if (v := getattr(limit, k)) is not None}
+        if given:
+            out[joint.name] = given
+    return out

@@ -28,6 +28,7 @@ import yaml
 
 from .. import api, bundle, untrusted
 from .. import output as out
+from .. import report as conversion_report
 from ..errors import InputError
 from ..passes.emit import EmitResult
 from . import attach, fiducials, fold
@@ -216,9 +217,10 @@ def build_facility(
         parts: list[attach.Part] = []
         placed: list = []
         links: set[str] = set()
+        limits: dict[str, dict[str, dict[str, float]]] = {}
         for name in attached:  # each compiled once: the file in components/ is what is attached
             file = _component_file(table, present, name)
-            part, tags, names = _attached_component(
+            part, tags, names, limits[name] = _attached_component(
                 root,
                 recipe,
                 name,
@@ -268,6 +270,9 @@ def build_facility(
                 api.convert(src, target, **comp_options)
                 built[asset] = Path("components") / asset / f"{asset}.xml"
         roles = _roles(root, recipe.path, table, present)
+        owned = component_motion_limits(table, present, report.motion_limits(), limits)
+        for name, joints in owned.items():
+            roles[name]["motion_limits"] = joints
         compiled = report.compiled  # validation's model of scene.xml as written
         assert compiled is not None  # the facility is always validated
         folded = folding.folded if folding is not None else None
@@ -329,10 +334,11 @@ def _attached_component(
     workers: int,
     cache_dir: Path | None,
     progress: Callable[[int, int, str], None] | None,
-) -> tuple[attach.Part, list, set[str]]:
+) -> tuple[attach.Part, list, set[str], dict[str, dict[str, float]]]:
     """Compile component ``name`` on its own with its ``attach`` arguments and its tags,
     into ``target`` (validated, as every conversion) or, None, in memory only; the
-    part to attach at ``pose``, the tags placed and its link names."""
+    part to attach at ``pose``, the tags placed, its link names and its joints' URDF 1.2
+    motion limits (:func:`urdf2mjcf.report.motion_limits`)."""
     comp = recipe.components[name]
     src = data_path(root, recipe.path, comp.standalone)
     if not src.is_file():
@@ -354,7 +360,33 @@ def _attached_component(
         keep(tags(result))
     assert keep.result is not None and model is not None
     part = attach.Part(name, keep.result, pose.xyz, attach.yaw_quat(pose.yaw))
-    return part, tags.placed, {link.name for link in model.robot.links}
+    links = {link.name for link in model.robot.links}
+    return part, tags.placed, links, conversion_report.motion_limits(model)
+
+
+def component_motion_limits(
+    table: Mapping[str, Component],
+    present: Collection[str],
+    world: Mapping[str, dict[str, float]],
+    attached: Mapping[str, Mapping[str, dict[str, float]]],
+) -> dict[str, dict[str, dict[str, float]]]:
+    """Component name -> joint -> its URDF 1.2 motion limits, for the components whose
+    descriptions state any (what facility.json lists under the component, for the
+    runtime's planners: MuJoCo does not enforce them). An attached component's come from
+    its own conversion (``attached``: its joints are named as in the facility); one of the
+    top-level xacro's from the world's conversion (``world``): the joints under its prefix,
+    the longest prefix where prefixes nest (a component without a prefix gets none: its
+    joints cannot be told from the world's)."""
+    out = {n: dict(attached[n]) for n in present if attached.get(n)}
+    inline = sorted(
+        (n for n in present if n not in attached and table[n].prefix),
+        key=lambda n: -len(table[n].prefix),
+    )
+    for joint, limits in world.items():
+        owner = next((n for n in inline if joint.startswith(table[n].prefix)), None)
+        if owner is not None:
+            out.setdefault(owner, {})[joint] = dict(limits)
+    return out
 
 
 RECIPE_HEADER = (

@@ -94,6 +94,8 @@ def _components(
                 named = _prefixed(spec["roles"], prefix)
                 _check_names(m, named, f"roles of '{name}'")
                 info["roles"] = named
+            if spec.get("motion_limits"):  # URDF 1.2's, for planners: MuJoCo ignores them
+                info["motion_limits"] = spec["motion_limits"]
         out[name] = info
     return out
 

@@ -32,7 +32,7 @@ from ..errors import PlanningError
 from . import ik, localize, perception, plan
 from .control import Controller
 from .judge import ContactJudge, stowed
-from .load import Facility
+from .load import Facility, Robot
 from .noise import SensorNoise
 from .sim import Sim
 from .steps import STEPS, StepError
@@ -55,6 +55,17 @@ class StepResult:
 # Joint acceleration limits for planned moves (rail, lift, arm; m/s^2, rad/s^2): ours,
 # well inside what the servos follow without lag.
 AMAX = (0.3, 0.5, 1.5, 1.5, 2.0, 3.0, 3.0, 3.0)
+
+
+def planner_amax(robot: Robot) -> np.ndarray:
+    """The planned moves' acceleration limit per joint: :data:`AMAX`, lowered to what the
+    robot's description states (URDF 1.2, ``Robot.amax``) where it states less. Its jerk
+    limits are not used: TOPP-RA times a path under speed and acceleration limits only."""
+    ours = np.broadcast_to(np.asarray(AMAX, float), (len(robot.joints),)).copy()
+    for i, limit in enumerate(robot.amax):
+        if limit is not None:
+            ours[i] = min(ours[i], limit)
+    return ours
 
 
 @dataclass
@@ -308,7 +319,7 @@ class Demo:
                 self.m,
                 [int(self.m.dof_jntid[d]) for d in self.r.dofs],
                 self.vmax,
-                AMAX,
+                planner_amax(self.r),
                 allowed_pairs=allowed,
                 seed=0,
                 link_of_geom=self.fac.link_of_geom,

@@ -18,6 +18,7 @@ from .. import bundle, mjcf_input
 from ..bundle import MANIFEST
 from ..errors import FacilityError
 from ..limits import TIMESTEP_RANGE
+from ..untrusted import excerpt
 
 
 class LoadError(FacilityError):
@@ -112,6 +113,11 @@ class Robot:
     """Indices into ``joints`` of the arm's joints (roles ``arm_joints``), in their order."""
     vmax: np.ndarray | None = None
     """Speed limit of each joint (rad/s or m/s; roles ``vmax``), None where not given."""
+    amax: list[float | None] = field(default_factory=list)
+    """Acceleration limit of each joint that its description states (URDF 1.2: the lower
+    of ``acceleration`` and ``deceleration``, rad/s^2 or m/s^2; facility.json's
+    ``components.robot.motion_limits``), None where it states none; empty: none at all.
+    MuJoCo does not enforce it: the planners do."""
 
 
 @dataclass
@@ -167,6 +173,37 @@ def _subtree(m: mujoco.MjModel, root: int) -> set[int]:
 
 
 ROBOT_ROLES = "components.robot.roles"
+MOTION_LIMITS = "components.robot.motion_limits"
+MOTION_KEYS = ("acceleration", "deceleration", "jerk")
+
+
+def _motion_limits(manifest: dict, path: Path, names: list[str]) -> list[float | None]:
+    """Per role joint, the lower of its acceleration and deceleration limits in
+    facility.json (None where none is stated; empty when the robot lists none); a
+    LoadError naming the key of a value that is not a positive number."""
+    section = manifest["components"]["robot"].get("motion_limits")
+    if section is None:
+        return []
+    if not isinstance(section, dict):
+        raise LoadError("not a mapping of joints", file=path, element=MOTION_LIMITS)
+    for joint, limits in section.items():
+        where = f"{MOTION_LIMITS}.{excerpt(str(joint), 60)}"
+        if not isinstance(limits, dict) or set(limits) - set(MOTION_KEYS) or not limits:
+            raise LoadError(f"a mapping of {', '.join(MOTION_KEYS)}", file=path, element=where)
+        for key, value in limits.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                ok = False
+            else:
+                ok = 0 < value < float("inf")
+            if not ok:
+                message = f"'{excerpt(str(value), 40)}' is not a positive number"
+                raise LoadError(message, file=path, element=f"{where}.{key}")
+    out: list[float | None] = []
+    for name in names:
+        limits = section.get(name) or {}
+        given = [float(limits[k]) for k in ("acceleration", "deceleration") if k in limits]
+        out.append(min(given) if given else None)
+    return out
 _KINDS: dict[Any, str] = {list: "non-empty list", dict: "mapping", str: "name"}
 
 
@@ -256,6 +293,7 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
                 element=r._at("vmax"),
             )
         vmax = np.array(values, float)
+    amax = _motion_limits(manifest, manifest_path, list(names))
     robot = Robot(
         joint_names=list(names),
         joints=joints,
@@ -275,5 +313,6 @@ def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
         bodies=_subtree(m, root),
         arm=np.array([list(names).index(a) for a in arm_names], int),
         vmax=vmax,
+        amax=amax,
     )
     return Facility(folder, m, d, manifest, robot)
