@@ -29,7 +29,8 @@ import yaml
 from .. import api, bundle, untrusted
 from .. import output as out
 from .. import report as conversion_report
-from ..errors import InputError
+from ..calibrate import apply as calib_apply
+from ..errors import ConversionError, InputError
 from ..passes.emit import EmitResult
 from . import attach, fiducials, fold
 from .jitter import jittered
@@ -200,6 +201,8 @@ def build_facility(
 
     present = [n for n in table if n in moved]
     attached = [n for n in present if table[n].attach is not None]
+    # every calibration file read before the first conversion: a bad one costs nothing
+    calibrations = {n: _calibration_file(root, recipe, n, table[n]) for n in attached}
     # Passes on the scene in memory: what is written is what validation stepped.
     folding = fold.Fold(recipe.path) if fold_fixtures else None
     tagging = fiducials.Tags(
@@ -226,6 +229,7 @@ def build_facility(
                 name,
                 moved[name],
                 stage / file if components else None,
+                calibration=calibrations[name],
                 workers=workers,
                 cache_dir=cache_dir,
                 progress=progress,
@@ -331,12 +335,14 @@ def _attached_component(
     pose: Pose2D,
     target: Path | None,
     *,
+    calibration: Path | None = None,
     workers: int,
     cache_dir: Path | None,
     progress: Callable[[int, int, str], None] | None,
 ) -> tuple[attach.Part, list, set[str], dict[str, dict[str, float]]]:
     """Compile component ``name`` on its own with its ``attach`` arguments and its tags,
-    into ``target`` (validated, as every conversion) or, None, in memory only; the
+    into ``target`` (validated, as every conversion) or, None, in memory only, with its
+    ``calibration`` file applied (:func:`_calibration_file`); the
     part to attach at ``pose``, the tags placed, its link names and its joints' URDF 1.2
     motion limits (:func:`urdf2mjcf.report.motion_limits`)."""
     comp = recipe.components[name]
@@ -351,6 +357,7 @@ def _attached_component(
     options = _component_options(
         root, recipe, comp, src, args, workers=workers, cache_dir=cache_dir, progress=progress
     )
+    options["calibration"] = calibration
     tags = fiducials.Tags([(name, comp.prefix, tag) for tag in comp.fiducials], recipe=recipe.path)
     keep = _Keep()
     if target is not None:
@@ -362,6 +369,28 @@ def _attached_component(
     part = attach.Part(name, keep.result, pose.xyz, attach.yaw_quat(pose.yaw))
     links = {link.name for link in model.robot.links}
     return part, tags.placed, links, conversion_report.motion_limits(model)
+
+
+def _calibration_file(root: Path, recipe: Recipe, name: str, comp: Component) -> Path | None:
+    """The component's calibration file (key ``calibration``), read once here so that a
+    missing or bad one is an error naming the recipe and the key before any conversion."""
+    if comp.calibration is None:
+        return None
+    where = f"components.{name}.calibration"
+    file = data_path(root, recipe.path, comp.calibration)
+    shown = untrusted.excerpt(comp.calibration, 80)
+    if not file.is_file():
+        raise InputError(
+            f"calibration file '{shown}' does not exist", file=recipe.path or file, element=where
+        )
+    try:
+        calib_apply.load(file)
+    except ConversionError as exc:
+        at = f" {exc.element}" if exc.element else ""
+        raise InputError(
+            f"calibration file '{shown}'{at}: {exc.detail}", file=recipe.path or file, element=where
+        ) from None
+    return file
 
 
 def component_motion_limits(
@@ -408,7 +437,8 @@ def _plain(value: Any) -> Any:
 def _component_data(comp: Component) -> dict:
     """A component table entry: the fields that differ from their defaults."""
     data: dict[str, Any] = {"asset": comp.asset, "standalone": comp.standalone}
-    for key, default in (("flag", None), ("prefix", ""), ("roles", None), ("free", False)):
+    defaults = (("flag", None), ("prefix", ""), ("roles", None), ("free", False))
+    for key, default in (*defaults, ("calibration", None)):
         if getattr(comp, key) != default:
             data[key] = getattr(comp, key)
     if comp.mechanisms is not None:

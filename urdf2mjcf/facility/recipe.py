@@ -22,9 +22,10 @@ A recipe is a YAML file (see ``recipes/`` and docs/facility.md)::
       links: {gripper_link: hull}     # per link, named as in the facility
 
 The component table maps each component's name to ``{asset, standalone, flag,
-prefix, roles, free, attach}`` (see :class:`Component`); the name is also the stem of
-its pose arguments in the xacro (``shelf_x``, ``shelf_y``, ``shelf_z``, ``shelf_yaw``)
-and its key under ``placements`` and ``jitter``. A component with ``attach`` (its
+prefix, roles, free, attach, calibration, ...}`` (see :class:`Component`); the name
+is also the stem of its pose arguments in the xacro (``shelf_x``, ``shelf_y``,
+``shelf_z``, ``shelf_yaw``) and its key under ``placements`` and ``jitter``.
+A component with ``attach`` (its
 standalone xacro's arguments; ``$NAME`` is the recipe flag NAME) is compiled once on
 its own and attached into the top-level xacro's world at its placement
 (``urdf2mjcf.facility.attach``); one without is part of the top-level xacro. The
@@ -74,8 +75,10 @@ from .values import (
 
 COMPONENT_KEYS = (
     "asset", "standalone", "flag", "prefix", "roles", "free", "fiducials", "mechanisms",
-    "attach", "pose",
+    "attach", "pose", "calibration",
 )
+OPTIONAL_FILES = ("flag", "roles", "mechanisms", "calibration")
+"""Text keys of a component that may also be null (none)."""
 ATTACH_ARGS_MAX = 64
 """Arguments of one attached component's standalone xacro."""
 TOP_KEYS = (
@@ -145,6 +148,11 @@ class Component:
     pose: Pose2D | None = None
     """Where an attached component stands when the recipe has no placement for it (as a
     xacro argument's default)."""
+    calibration: str | None = None
+    """A calibration file (``urdf2mjcf calibrate``'s ``calibration.yaml``, a path as the
+    recipe's others) applied to the component's own conversion, as ``urdf2mjcf SOURCE
+    --calibration FILE``: attached components only (that conversion is what the scene
+    holds)."""
 
     def attach_args(self, flags: Mapping[str, Any]) -> dict[str, str]:
         """:attr:`attach` as xacro arguments, flags substituted. A flag the recipe does not
@@ -376,11 +384,12 @@ def _component(spec: Any, src: Source, where: str) -> Component:
             value = _attach(value, src, f"{where}.{key}")
         elif key == "pose":
             value = _pose(value, src, f"{where}.{key}")
-        elif not (
-            isinstance(value, str) or (key in ("flag", "roles", "mechanisms") and value is None)
-        ):
+        elif not (isinstance(value, str) or (key in OPTIONAL_FILES and value is None)):
             raise src.fail(f"{where}.{key}", f"'{value}' is not text")
         out[key] = value
+    if out.get("calibration") is not None and out.get("attach") is None:
+        message = "applies to an attached component's own conversion: give it attach"
+        raise src.fail(f"{where}.calibration", message)
     return Component(**out)
 
 

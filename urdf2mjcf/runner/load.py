@@ -204,6 +204,8 @@ def _motion_limits(manifest: dict, path: Path, names: list[str]) -> list[float |
         given = [float(limits[k]) for k in ("acceleration", "deceleration") if k in limits]
         out.append(min(given) if given else None)
     return out
+
+
 _KINDS: dict[Any, str] = {list: "non-empty list", dict: "mapping", str: "name"}
 
 
