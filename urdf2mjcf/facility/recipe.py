@@ -25,9 +25,9 @@ The component table maps each component's name to ``{asset, standalone, flag,
 prefix, roles, free, attach, calibration, ...}`` (see :class:`Component`); the name
 is also the stem of its pose arguments in the xacro (``shelf_x``, ``shelf_y``,
 ``shelf_z``, ``shelf_yaw``) and its key under ``placements`` and ``jitter``.
-A component with ``attach`` (its
-standalone xacro's arguments; ``$NAME`` is the recipe flag NAME) is compiled once on
-its own and attached into the top-level xacro's world at its placement
+A component with ``attach`` (its standalone xacro's arguments; ``$NAME`` is the
+recipe flag NAME) is compiled once on its own and attached into the
+top-level xacro's world at its placement
 (``urdf2mjcf.facility.attach``); one without is part of the top-level xacro. The
 builder knows no component by name: everything it does with one comes from this table.
 
