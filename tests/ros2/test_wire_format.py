@@ -104,7 +104,7 @@ def _rosbags_store():
     store = get_typestore(Stores.ROS2_JAZZY)
     extra = {}
     for name, text in interfaces.MESSAGES.items():
-        if name.startswith("mujoco_ros2_control_msgs/"):
+        if name.startswith(("mujoco_ros2_control_msgs/", "control_msgs/")):
             extra.update(get_types_from_msg(text, name))
     store.register(extra)
     return store
@@ -180,3 +180,30 @@ def test_an_actions_status_array_read_back_by_rosbags():
     assert [s.status for s in theirs.status_list] == [4, 2]
     assert theirs.status_list[0].goal_info.goal_id.uuid.tolist() == list(range(16))
     assert theirs.status_list[1].goal_info.stamp.nanosec == 6
+
+
+# published by ROS 2 (action_msgs' CancelGoal.json as installed, and `ros2 action info -v`)
+CANCEL_GOAL_HASH = "RIHS01_573d8b0a534451d7bc2ac8c5ffde8ac14b8593b7001175d0cd6516dcbeb8689a"
+
+
+def test_an_actions_services_hashes_and_dds_names():
+    assert type_hash.type_hash("action_msgs/srv/CancelGoal") == CANCEL_GOAL_HASH
+    action = "control_msgs/action/FollowJointTrajectory"
+    assert keyexpr.dds_type_name(f"{action}_SendGoal") == (
+        "control_msgs::action::dds_::FollowJointTrajectory_SendGoal_"
+    )
+    # SendGoal's request and GetResult's response carry the action's own messages, each
+    # hashed as rosbags hashes it (the parametrized test above)
+    desc = type_hash.description(f"{action}_SendGoal")
+    names = {d["type_name"] for d in desc["referenced_type_descriptions"]}
+    assert {f"{action}_Goal", "unique_identifier_msgs/msg/UUID"} <= names
+    desc = type_hash.description(f"{action}_GetResult")
+    response = next(
+        d
+        for d in desc["referenced_type_descriptions"]
+        if d["type_name"] == f"{action}_GetResult_Response"
+    )
+    assert [(f["name"], f["type"]["nested_type_name"]) for f in response["fields"]] == [
+        ("status", ""),
+        ("result", f"{action}_Result"),
+    ]
