@@ -207,3 +207,25 @@ def test_an_actions_services_hashes_and_dds_names():
         ("status", ""),
         ("result", f"{action}_Result"),
     ]
+
+
+# action_tutorials_interfaces' Fibonacci (ROS 2's action tutorial): the hashes of its
+# SendGoal and GetResult services and its FeedbackMessage as ROS 2 Jazzy builds them
+FIBONACCI = "action_tutorials_interfaces/action/Fibonacci"
+FIBONACCI_HASHES = {
+    "_SendGoal": "RIHS01_a0603060ed69fe2dfbd1a6f3b982a1749957ef346e4a4d2b311a05e305ec37bb",
+    "_GetResult": "RIHS01_8b47e383f1e31f6d8df6417ab54957e7d5ea24dad315646ad711ac3fdea81d58",
+    "_FeedbackMessage": "RIHS01_50fc26b9cac313652ecbeab3adf9b5414d59fd4d4d5f9058ddcc7525169927f1",
+}
+
+
+def test_an_actions_parts_hash_as_ros_2_hashes_them(monkeypatch):
+    messages, services = interfaces.action_parts(
+        FIBONACCI, "int32 order", "int32[] sequence", "int32[] partial_sequence"
+    )
+    for name, text in messages.items():
+        monkeypatch.setitem(interfaces.MESSAGES, name, text)
+    for name, halves in services.items():
+        monkeypatch.setitem(interfaces.SERVICES, name, halves)
+    for part, expected in FIBONACCI_HASHES.items():
+        assert type_hash.type_hash(FIBONACCI + part) == expected

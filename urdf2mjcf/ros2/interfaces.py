@@ -156,28 +156,37 @@ SERVICES["action_msgs/srv/CancelGoal"] = (
 )
 
 
-def _action_parts() -> None:
-    """What rosidl makes of each action: its ``_Goal``, ``_Result``, ``_Feedback`` and
-    ``_FeedbackMessage`` messages and its ``_SendGoal`` and ``_GetResult`` services,
-    all in ``pkg/action/``."""
-    for action, (goal, result, feedback) in ACTIONS.items():
-        MESSAGES[f"{action}_Goal"] = goal
-        MESSAGES[f"{action}_Result"] = result
-        MESSAGES[f"{action}_Feedback"] = feedback
-        MESSAGES[f"{action}_FeedbackMessage"] = (
+def action_parts(
+    action: str, goal: str, result: str, feedback: str
+) -> tuple[dict[str, str], dict[str, tuple[str, str]]]:
+    """What rosidl makes of an action (``pkg/action/Name``): its ``_Goal``, ``_Result``,
+    ``_Feedback`` and ``_FeedbackMessage`` messages and its ``_SendGoal`` and
+    ``_GetResult`` services, all in ``pkg/action/``."""
+    messages = {
+        f"{action}_Goal": goal,
+        f"{action}_Result": result,
+        f"{action}_Feedback": feedback,
+        f"{action}_FeedbackMessage": (
             f"unique_identifier_msgs/UUID goal_id\n{action}_Feedback feedback"
-        )
-        SERVICES[f"{action}_SendGoal"] = (
+        ),
+    }
+    services = {
+        f"{action}_SendGoal": (
             f"unique_identifier_msgs/UUID goal_id\n{action}_Goal goal",
             "bool accepted\nbuiltin_interfaces/Time stamp",
-        )
-        SERVICES[f"{action}_GetResult"] = (
+        ),
+        f"{action}_GetResult": (
             "unique_identifier_msgs/UUID goal_id",
             f"int8 status\n{action}_Result result",
-        )
+        ),
+    }
+    return messages, services
 
 
-_action_parts()
+for _action, _texts in ACTIONS.items():
+    _messages, _services = action_parts(_action, *_texts)
+    MESSAGES.update(_messages)
+    SERVICES.update(_services)
 
 _ARRAY = re.compile(r"\[[^\]]*\]$")
 
