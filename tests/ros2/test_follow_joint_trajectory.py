@@ -52,7 +52,7 @@ for _name, _text in _TYPES.items():
     if _name not in STORE.types:
         STORE.register(get_types_from_msg(_text, _name))
 T = STORE.types
-SUCCEEDED, CANCELED = 4, 5
+SUCCEEDED, CANCELED, ABORTED = 4, 5, 6
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +88,7 @@ def _call(client, service: str, request_type: str, response_type: str, request, 
     return STORE.deserialize_cdr(replies[0].ok.payload.to_bytes(), response_type)
 
 
-def _goal(n: int, names, points, tolerance: float = 0.0):
+def _goal(n: int, names, points, tolerance: float = 0.0, path: float = 0.0, late: int = 1):
     goal = T[f"{FJT}_Goal"](
         trajectory=_trajectory(names, points),
         multi_dof_trajectory=T["trajectory_msgs/msg/MultiDOFJointTrajectory"](
@@ -98,7 +98,12 @@ def _goal(n: int, names, points, tolerance: float = 0.0):
             joint_names=[],
             points=[],
         ),
-        path_tolerance=[],
+        path_tolerance=[
+            T["control_msgs/msg/JointTolerance"](
+                name=n_, position=path, velocity=0.0, acceleration=0.0
+            )
+            for n_ in (names if path else [])
+        ],
         component_path_tolerance=[],
         goal_tolerance=[
             T["control_msgs/msg/JointTolerance"](
@@ -107,13 +112,13 @@ def _goal(n: int, names, points, tolerance: float = 0.0):
             for n_ in (names if tolerance else [])
         ],
         component_goal_tolerance=[],
-        goal_time_tolerance=T["builtin_interfaces/msg/Duration"](sec=1, nanosec=0),
+        goal_time_tolerance=T["builtin_interfaces/msg/Duration"](sec=late, nanosec=0),
     )
     return T[f"{FJT}_SendGoal_Request"](goal_id=_uuid(n), goal=goal)
 
 
-def _send(client, n, names, points, tolerance=0.0) -> bool:
-    req = _goal(n, names, points, tolerance)
+def _send(client, n, names, points, tolerance=0.0, path=0.0, late=1) -> bool:
+    req = _goal(n, names, points, tolerance, path, late)
     res = _call(client, "send_goal", f"{FJT}_SendGoal_Request", f"{FJT}_SendGoal_Response", req)
     return bool(res.accepted)
 
@@ -216,3 +221,17 @@ def test_a_cancel_holds_the_joints_where_they_are(client):
     now = _positions(client, NAMES)
     np.testing.assert_allclose(now, held, atol=0.01)  # stopped
     assert np.all(np.abs(now - start) > 0.05) and np.all(np.abs(now - goal) > 0.05)  # mid-way
+
+
+def test_tolerances_violated_abort_with_control_msgs_error_codes(client):
+    # 1e-6 rad: no servo is that close, at the end (no time allowed past it) nor on the way
+    here = _positions(client, NAMES)
+    assert _send(client, 6, NAMES, [(0.3, (here + 0.1).tolist())], tolerance=1e-6, late=0)
+    res = _result(client, 6)
+    assert res.status == ABORTED and res.result.error_code == -5  # GOAL_TOLERANCE_VIOLATED
+    assert _send(client, 7, NAMES, [(2.0, (here - 0.3).tolist())], path=1e-6)
+    res = _result(client, 7)
+    assert res.status == ABORTED and res.result.error_code == -4  # PATH_TOLERANCE_VIOLATED
+    _wait_sim(client, 0.3)
+    held = _positions(client, NAMES)
+    np.testing.assert_allclose(held, here + 0.1, atol=0.05)  # stopped near where it was

@@ -140,8 +140,12 @@ class TrajectoryAction:
         refused = {"accepted": False, "stamp": _stamp(now)}
         msg = goal.get("trajectory", {})
         names = tuple(msg.get("joint_names", []))
-        if uuid in self.goals or goal.get("multi_dof_trajectory", {}).get("joint_names"):
-            return refused  # a goal id used twice; multi-DOF joints, which none of ours is
+        if uuid in self.goals:
+            log.warning("%s: goal rejected: its id is taken", self.name)
+            return refused
+        if goal.get("multi_dof_trajectory", {}).get("joint_names"):
+            log.warning("%s: goal rejected: multi-DOF joints (the controller has none)", self.name)
+            return refused
         try:
             current = d.ctrl[list(group.actuators)].copy()
             traj = controllers.trajectory(group, msg, now, current)
