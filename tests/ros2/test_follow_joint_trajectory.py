@@ -215,6 +215,14 @@ def test_a_cancel_holds_the_joints_where_they_are(client):
     assert [g.goal_id.uuid.tolist() for g in res.goals_canceling] == [[5] * 16]
     waiter.join(20)
     assert got and got[0].status == CANCELED
+    again = _call(
+        client,
+        "cancel_goal",
+        "action_msgs/msg/CancelGoal_Request",
+        "action_msgs/msg/CancelGoal_Response",
+        T["action_msgs/msg/CancelGoal_Request"](goal_info=info),
+    )
+    assert again.return_code == 3  # ERROR_GOAL_TERMINATED
     _wait_sim(client, 0.3)
     held = _positions(client, NAMES)
     _wait_sim(client, 0.5)

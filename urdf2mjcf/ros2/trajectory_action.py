@@ -184,8 +184,9 @@ class TrajectoryAction:
         if not zero and uuid not in self.goals:
             return {"return_code": ERROR_UNKNOWN_GOAL_ID, "goals_canceling": []}
         live = [g for g in picked if g.status not in TERMINAL]
-        if picked and not live:
-            return {"return_code": ERROR_GOAL_TERMINATED, "goals_canceling": []}
+        if not live:  # rcl_action: a named goal that has ended, else nothing to cancel
+            code = ERROR_GOAL_TERMINATED if not zero else ERROR_REJECTED
+            return {"return_code": code, "goals_canceling": []}
         for g in live:
             if g is self.active:
                 self._hold()
