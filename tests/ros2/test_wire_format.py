@@ -104,7 +104,7 @@ def _rosbags_store():
     store = get_typestore(Stores.ROS2_JAZZY)
     extra = {}
     for name, text in interfaces.MESSAGES.items():
-        if name.startswith("mujoco_ros2_control_msgs/"):
+        if name.startswith(("mujoco_ros2_control_msgs/", "control_msgs/")):
             extra.update(get_types_from_msg(text, name))
     store.register(extra)
     return store
@@ -180,3 +180,52 @@ def test_an_actions_status_array_read_back_by_rosbags():
     assert [s.status for s in theirs.status_list] == [4, 2]
     assert theirs.status_list[0].goal_info.goal_id.uuid.tolist() == list(range(16))
     assert theirs.status_list[1].goal_info.stamp.nanosec == 6
+
+
+# published by ROS 2 (action_msgs' CancelGoal.json as installed, and `ros2 action info -v`)
+CANCEL_GOAL_HASH = "RIHS01_573d8b0a534451d7bc2ac8c5ffde8ac14b8593b7001175d0cd6516dcbeb8689a"
+
+
+def test_an_actions_services_hashes_and_dds_names():
+    assert type_hash.type_hash("action_msgs/srv/CancelGoal") == CANCEL_GOAL_HASH
+    action = "control_msgs/action/FollowJointTrajectory"
+    assert keyexpr.dds_type_name(f"{action}_SendGoal") == (
+        "control_msgs::action::dds_::FollowJointTrajectory_SendGoal_"
+    )
+    # SendGoal's request and GetResult's response carry the action's own messages, each
+    # hashed as rosbags hashes it (the parametrized test above)
+    desc = type_hash.description(f"{action}_SendGoal")
+    names = {d["type_name"] for d in desc["referenced_type_descriptions"]}
+    assert {f"{action}_Goal", "unique_identifier_msgs/msg/UUID"} <= names
+    desc = type_hash.description(f"{action}_GetResult")
+    response = next(
+        d
+        for d in desc["referenced_type_descriptions"]
+        if d["type_name"] == f"{action}_GetResult_Response"
+    )
+    assert [(f["name"], f["type"]["nested_type_name"]) for f in response["fields"]] == [
+        ("status", ""),
+        ("result", f"{action}_Result"),
+    ]
+
+
+# action_tutorials_interfaces' Fibonacci (ROS 2's action tutorial): the hashes of its
+# SendGoal and GetResult services and its FeedbackMessage as ROS 2 Jazzy builds them
+FIBONACCI = "action_tutorials_interfaces/action/Fibonacci"
+FIBONACCI_HASHES = {
+    "_SendGoal": "RIHS01_a0603060ed69fe2dfbd1a6f3b982a1749957ef346e4a4d2b311a05e305ec37bb",
+    "_GetResult": "RIHS01_8b47e383f1e31f6d8df6417ab54957e7d5ea24dad315646ad711ac3fdea81d58",
+    "_FeedbackMessage": "RIHS01_50fc26b9cac313652ecbeab3adf9b5414d59fd4d4d5f9058ddcc7525169927f1",
+}
+
+
+def test_an_actions_parts_hash_as_ros_2_hashes_them(monkeypatch):
+    messages, services = interfaces.action_parts(
+        FIBONACCI, "int32 order", "int32[] sequence", "int32[] partial_sequence"
+    )
+    for name, text in messages.items():
+        monkeypatch.setitem(interfaces.MESSAGES, name, text)
+    for name, halves in services.items():
+        monkeypatch.setitem(interfaces.SERVICES, name, halves)
+    for part, expected in FIBONACCI_HASHES.items():
+        assert type_hash.type_hash(FIBONACCI + part) == expected

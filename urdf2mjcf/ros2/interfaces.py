@@ -98,6 +98,14 @@ MESSAGES: dict[str, str] = {
         "uint8 event_type\nbuiltin_interfaces/Time stamp\nchar[16] client_gid\n"
         "int64 sequence_number"
     ),
+    # FollowJointTrajectory's tolerances (ros-controls/control_msgs)
+    "control_msgs/msg/JointTolerance": (
+        "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration"
+    ),
+    "control_msgs/msg/JointComponentTolerance": (
+        "string joint_name\nuint16 component\nfloat64 position\nfloat64 velocity\n"
+        "float64 acceleration"
+    ),
     "mujoco_ros2_control_msgs/msg/FreeJointState": (
         "string name\ngeometry_msgs/PoseStamped pose\ngeometry_msgs/TwistStamped twist"
     ),
@@ -120,11 +128,74 @@ SERVICES: dict[str, tuple[str, str]] = {
 }
 """``pkg/srv/Name`` -> (request fields, response fields)."""
 
+ACTIONS: dict[str, tuple[str, str, str]] = {
+    "control_msgs/action/FollowJointTrajectory": (
+        "trajectory_msgs/JointTrajectory trajectory\n"
+        "trajectory_msgs/MultiDOFJointTrajectory multi_dof_trajectory\n"
+        "control_msgs/JointTolerance[] path_tolerance\n"
+        "control_msgs/JointComponentTolerance[] component_path_tolerance\n"
+        "control_msgs/JointTolerance[] goal_tolerance\n"
+        "control_msgs/JointComponentTolerance[] component_goal_tolerance\n"
+        "builtin_interfaces/Duration goal_time_tolerance",
+        "int32 error_code\nstring error_string",
+        "std_msgs/Header header\nstring[] joint_names\n"
+        "trajectory_msgs/JointTrajectoryPoint desired\n"
+        "trajectory_msgs/JointTrajectoryPoint actual\n"
+        "trajectory_msgs/JointTrajectoryPoint error\n"
+        "string[] multi_dof_joint_names\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_desired\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_actual\n"
+        "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_error",
+    ),
+}
+"""``pkg/action/Name`` -> (goal, result, feedback fields)."""
+
+SERVICES["action_msgs/srv/CancelGoal"] = (
+    "action_msgs/GoalInfo goal_info",
+    "int8 return_code\naction_msgs/GoalInfo[] goals_canceling",
+)
+
+
+def action_parts(
+    action: str, goal: str, result: str, feedback: str
+) -> tuple[dict[str, str], dict[str, tuple[str, str]]]:
+    """What rosidl makes of an action (``pkg/action/Name``): its ``_Goal``, ``_Result``,
+    ``_Feedback`` and ``_FeedbackMessage`` messages and its ``_SendGoal`` and
+    ``_GetResult`` services, all in ``pkg/action/``."""
+    messages = {
+        f"{action}_Goal": goal,
+        f"{action}_Result": result,
+        f"{action}_Feedback": feedback,
+        f"{action}_FeedbackMessage": (
+            f"unique_identifier_msgs/UUID goal_id\n{action}_Feedback feedback"
+        ),
+    }
+    services = {
+        f"{action}_SendGoal": (
+            f"unique_identifier_msgs/UUID goal_id\n{action}_Goal goal",
+            "bool accepted\nbuiltin_interfaces/Time stamp",
+        ),
+        f"{action}_GetResult": (
+            "unique_identifier_msgs/UUID goal_id",
+            f"int8 status\n{action}_Result result",
+        ),
+    }
+    return messages, services
+
+
+for _action, _texts in ACTIONS.items():
+    _messages, _services = action_parts(_action, *_texts)
+    MESSAGES.update(_messages)
+    SERVICES.update(_services)
+
 _ARRAY = re.compile(r"\[[^\]]*\]$")
 
 
 def full_name(kind: str, package: str) -> str:
-    """``pkg/Name`` (or a bare ``Name`` of ``package``) -> ``pkg/msg/Name``."""
+    """``pkg/Name`` (or a bare ``Name`` of ``package``) -> ``pkg/msg/Name``; a name
+    already full (``pkg/action/Name_Goal``) as it is."""
+    if kind.count("/") == 2:
+        return kind
     pkg, _, name = kind.rpartition("/")
     return f"{pkg or package}/msg/{name}"
 
@@ -158,7 +229,8 @@ def definition_text(datatype: str) -> str:
     """``datatype`` and every type it uses, as ``ros2 bag`` stores a definition (each used
     type after a line of 80 '=' and ``MSG: pkg/Name``): what :mod:`..runner.cdr` reads.
     A service's ``_Request`` / ``_Response`` is given by its full name."""
-    parts = service_parts(datatype.rsplit("_", 1)[0]) if "/srv/" in datatype else {}
+    service = datatype.rsplit("_", 1)[0]
+    parts = service_parts(service) if service in SERVICES else {}
     text = parts.get(datatype) or MESSAGES[datatype]
     package = datatype.split("/")[0]
     order: list[str] = []
@@ -187,5 +259,8 @@ def _qualified(body: str, package: str) -> str:
         sub = nested(kind)
         if sub is not None and "/" not in sub:
             kind = f"{package}/{kind}"
+        elif sub is not None and sub.count("/") == 2:  # pkg/action/X as the reader names it
+            pkg, _, rest = kind.split("/", 2)
+            kind = f"{pkg}/{rest}"
         lines.append(f"{kind} {name}")
     return "\n".join(lines)

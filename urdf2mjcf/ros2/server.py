@@ -5,7 +5,9 @@ Published: ``/clock`` (simulated time), ``/joint_states`` and
 effort), ``/tf`` (the frames a joint moves, each body named as the URDF's link, in
 its parent's frame) and ``/tf_static`` (the others, latched). Taken: the forward
 controllers' ``/<group>/commands`` and ``/joint_trajectory_controller/joint_trajectory``
-(:mod:`.controllers`), or those a controllers file names (:mod:`.controller_file`).
+(:mod:`.controllers`), or those a controllers file names (:mod:`.controller_file`);
+each trajectory controller's ``/<controller>/follow_joint_trajectory`` action
+(:mod:`.trajectory_action`).
 Services of the node: ``~/reset_world``, ``~/set_pause``, ``~/step_simulation``, with
 mujoco_ros2_control's types and meaning. What a world adds (sensors, scans, cameras,
 rovers) comes in as an :class:`Extension`.
@@ -35,6 +37,7 @@ import numpy as np
 
 from . import controllers, keyexpr
 from .session import Endpoints, Node
+from .trajectory_action import TrajectoryAction
 
 log = logging.getLogger(__name__)
 
@@ -164,6 +167,8 @@ class Server:
             self.groups = {g.name: g for g in given.forward}
             self.trajectory_groups = {g.name: g for g in given.trajectory}
         self._trajectories: dict[str, controllers.Trajectory] = {}
+        self._finished: dict[str, controllers.Trajectory] = {}  # followed to their end
+        self.actions = [TrajectoryAction(self, g) for g in self.trajectory_groups.values()]
         self._frames = self._split_frames()
         self._inbox: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self.paused = False
@@ -210,12 +215,15 @@ class Server:
         mujoco.mj_forward(self.m, self.d)
         # the command interfaces re-synced: position servos hold where the joints are
         self._trajectories.clear()
+        self._finished.clear()
         for g in [*self.groups.values(), *self.trajectory_groups.values()]:
             for a in g.actuators:
                 jq = self.m.jnt_qposadr[self.m.actuator_trnid[a, 0]]
                 self.d.ctrl[a] = self.d.qpos[jq] if g.kind == "position" else 0.0
         for e in self.extensions:
             e.reset()
+        for action in self.actions:
+            action.reset()
         self._resync = True
 
     # -- commands (queued from Zenoh's threads, run in the simulation's) ----------------
@@ -270,19 +278,34 @@ class Server:
             n for n in self._trajectories if taken & set(self.trajectory_groups[n].actuators)
         ]:
             del self._trajectories[name]
+            self._finished.pop(name, None)
         self.d.ctrl[list(group.actuators)] = self._clip(group, values, f"{group.name} commands")
 
     def on_trajectory(self, group: controllers.Group, msg: dict[str, Any]) -> None:
         def start() -> None:
             current = self.d.ctrl[list(group.actuators)].copy()
             try:
-                self._trajectories[group.name] = controllers.trajectory(
-                    group, msg, self.d.time, current
+                self.start_trajectory(
+                    group.name, controllers.trajectory(group, msg, self.d.time, current)
                 )
             except controllers.BadCommand as exc:
                 self.warn.drop(f"{group.name} joint_trajectory", str(exc))
 
         self._inbox.put(start)
+
+    def start_trajectory(self, name: str, traj: controllers.Trajectory) -> None:
+        """Trajectory controller ``name`` follows ``traj`` from now on."""
+        self._trajectories[name] = traj
+        self._finished.pop(name, None)
+
+    def stop_trajectory(self, name: str) -> None:
+        self._trajectories.pop(name, None)
+        self._finished.pop(name, None)
+
+    def follows(self, name: str, traj: controllers.Trajectory) -> bool:
+        """Whether ``traj`` is controller ``name``'s, still or followed to its end with
+        no command since."""
+        return self._trajectories.get(name) is traj or self._finished.get(name) is traj
 
     def _follow(self) -> None:
         for name, traj in list(self._trajectories.items()):
@@ -300,6 +323,7 @@ class Server:
             self.d.ctrl[acts] = self._clip(sub, traj.sample(self.d.time), "trajectory positions")
             if self.d.time > traj.end:
                 del self._trajectories[name]
+                self._finished[name] = traj
 
     # -- services ------------------------------------------------------------------------
 
@@ -419,7 +443,10 @@ class Server:
         self._follow()
         self._physics()
         self.steps += 1
-        if self.d.time + 1e-12 >= self._next_publish:
+        tick = self.d.time + 1e-12 >= self._next_publish
+        for action in self.actions:
+            action.tick(publish=tick)
+        if tick:
             self._publish()
             self._next_publish += 1.0 / self.config.rate
             if self._next_publish < self.d.time:
@@ -474,6 +501,8 @@ class Server:
             node.service(
                 f"/{base}/{name}", f"mujoco_ros2_control_msgs/srv/{srv}", handler, on_bad=bad
             )
+        for action in self.actions:
+            action.open(node, bad)
         for e in self.extensions:
             e.open(node, self)
 

@@ -140,6 +140,18 @@ class Node:
     ) -> None:
         """A service server: ``handler(request) -> response`` for each query (run on
         Zenoh's thread; it may block until the simulation has answered)."""
+        self.deferred_service(name, type_name, lambda req, reply: reply(handler(req)), on_bad)
+
+    def deferred_service(
+        self,
+        name: str,
+        type_name: str,
+        handler: Callable[[dict[str, Any], Callable[[dict[str, Any]], None]], None],
+        on_bad: Callable[[str], None] | None = None,
+    ) -> None:
+        """A service server whose ``handler(request, reply)`` may answer later, from any
+        thread, by ``reply(response)`` (an action's get_result waits for its goal's end
+        that way without holding Zenoh's thread)."""
         decode = cdr.decoder(
             f"{type_name}_Request", interfaces.definition_text(f"{type_name}_Request")
         )
@@ -156,18 +168,23 @@ class Node:
                 if on_bad is not None:
                     on_bad(f"{name}: {exc}")
                 return
+
+            def reply(response: dict[str, Any]) -> None:
+                # the reply carries the request's sequence number and client GID back
+                att = attachment.Attachment(
+                    asked.sequence if asked else 0,
+                    time.time_ns(),
+                    asked.gid if asked else bytes(attachment.GID_SIZE),
+                )
+                try:
+                    q.reply(q.key_expr, encode(response), attachment=att.encode())
+                finally:
+                    q.drop()  # the query's end: the client's get returns
+
             try:
-                response = handler(request)
+                handler(request, reply)
             except Exception:  # noqa: BLE001 - a bug: said, and the client times out
                 log.exception("%s: the service failed", name)
-                return
-            # the reply carries the request's sequence number and client GID back
-            att = attachment.Attachment(
-                asked.sequence if asked else 0,
-                time.time_ns(),
-                asked.gid if asked else bytes(attachment.GID_SIZE),
-            )
-            q.reply(q.key_expr, encode(response), attachment=att.encode())
 
         key = keyexpr.data_keyexpr(self.info.domain, name, type_name)
         self._held.append(self.session.declare_queryable(key, query, complete=True))

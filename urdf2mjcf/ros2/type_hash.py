@@ -65,7 +65,7 @@ def _field(name: str, kind: str, package: str, used: set[str]) -> dict[str, Any]
     sub = nested(base)
     if sub is not None:
         type_id = _NESTED
-        nested_name = full_name(sub, package) if "/srv/" not in sub else sub
+        nested_name = full_name(sub, package)
         used.add(nested_name)
     elif base.startswith("string<="):
         type_id = _BOUNDED_STRING
@@ -86,7 +86,7 @@ def _field(name: str, kind: str, package: str, used: set[str]) -> dict[str, Any]
 def _bodies(type_name: str) -> dict[str, list[tuple[str, str]]]:
     """Type name -> its (type, name) fields, for ``type_name`` (a message or a
     service) and the parts rosidl makes of a service."""
-    if "/srv/" not in type_name:
+    if type_name not in SERVICES:
         return {type_name: fields(MESSAGES[type_name])}
     parts = {k: fields(v) for k, v in service_parts(type_name).items()}
     parts[f"{type_name}_Event"] = [
