@@ -426,7 +426,7 @@ def _overlap_key(
         if elements is None:
             return None
         parts.append([elements, np.asarray(pose, float).round(12).tolist()])
-    payload = {"kind": "certificate-overlap", "format": 3, "samples": OVERLAP_SAMPLES, "seed": SEED}
+    payload = {"kind": "certificate-overlap", "format": 4, "samples": OVERLAP_SAMPLES, "seed": SEED}
     normal, limit, geoms = along
     separation = [np.asarray(normal, float).round(9).tolist(), round(float(limit), 9), geoms]
     return stored.key({**payload, "links": parts, "along": separation})
