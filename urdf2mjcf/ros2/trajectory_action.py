@@ -19,15 +19,32 @@ import logging
 from collections.abc import Callable
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from . import controllers, keyexpr
 
 if TYPE_CHECKING:
-    from .server import Server
     from .session import Node
+
+
+class Server(Protocol):
+    """What the action needs of the server that runs it (:class:`.server.Server`):
+    declared here, so the server imports the action and not the other way round."""
+
+    m: Any
+    d: Any
+
+    def submit(self, fn: Callable[[], Any], timeout: float = 30.0) -> Any: ...
+
+    def post(self, fn: Callable[[], None]) -> None: ...
+
+    def start_trajectory(self, name: str, traj: controllers.Trajectory) -> None: ...
+
+    def stop_trajectory(self, name: str) -> None: ...
+
+    def follows(self, name: str, traj: controllers.Trajectory) -> bool: ...
 
 log = logging.getLogger(__name__)
 
