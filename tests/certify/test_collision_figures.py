@@ -335,6 +335,46 @@ def test_only_shapes_urdf_does_not_define_is_the_descriptions_choice(tmp_path: P
     assert check["ok"] and "kinds URDF does not define" in check["detail"]
 
 
+def test_every_collision_mesh_missing_is_the_descriptions_flaw(tmp_path: Path) -> None:
+    """qibullet's pepper.urdf and poppy-ergo-jr name meshes their packages do not ship
+    (fetched later by the package's own installer): the model has no colliding geom, and
+    the certificate passes saying it is the description's flaw and how many meshes it
+    dropped."""
+    src = tmp_path / "robot.urdf"
+    src.write_text(
+        '<robot name="r"><link name="base"><collision><geometry>'
+        '<mesh filename="meshes/base.stl"/></geometry></collision>'
+        f"{INERTIAL}</link>"
+        '<link name="arm"><collision><geometry><mesh filename="package://nowhere/arm.stl"/>'
+        f"</geometry></collision>{INERTIAL}</link>"
+        '<joint name="j" type="revolute"><parent link="base"/><child link="arm"/>'
+        '<origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+    )
+    report = api.convert(src, tmp_path / "out" / "robot.xml", scene=False)
+    certificate = report.certificate
+    assert certificate.passed, certificate.failures
+    check = certificate.sections["checks"]["checks"]["collision_matrix"]
+    assert check["ok"] and "were not found or not readable (its flaw" in check["detail"]
+    summary = certificate.summary()
+    assert summary.startswith("certificate: passed")
+    assert "the description's flaw: 2 meshes it names were not found" in summary
+
+
+def test_a_missing_mesh_beside_a_box_leaves_the_box_colliding(tmp_path: Path) -> None:
+    """A missing mesh drops only itself: the link's box still reaches the floor."""
+    src = tmp_path / "robot.urdf"
+    src.write_text(
+        '<robot name="r"><link name="base"><collision><geometry>'
+        '<mesh filename="meshes/base.stl"/></geometry></collision>'
+        f'<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision>{INERTIAL}'
+        "</link></robot>"
+    )
+    report = api.convert(src, tmp_path / "out" / "robot.xml", scene=False)
+    check = report.certificate.sections["checks"]["checks"]["collision_matrix"]
+    assert check["ok"] and "can touch a default floor" in check["detail"]
+
+
 def test_a_four_value_mesh_scale_is_measured_as_the_conversion_reads_it(tmp_path: Path) -> None:
     """pybullet's racecar_differential.urdf writes scale="1 1 1 1": the conversion reads
     the first three factors, and the certificate's figures are measured the same way

@@ -370,7 +370,29 @@ def check_collision_matrix(m: mujoco.MjModel, ref: Reference) -> dict[str, Any]:
             "them) or of zero size, and the model has none: the description's choice"
         )
         return _check(True, detail, **figures)
+    if all(
+        zero_size(el.geometry) is not None
+        or _unknown(el.geometry)
+        or _missing_mesh(ref, el.geometry)
+        for el in elements
+    ):
+        detail = (
+            "the description's collision meshes were not found or not readable (its flaw: "
+            "the conversion warned it dropped them), its other shapes are of zero size or "
+            "of kinds URDF does not define, and the model has none left"
+        )
+        return _check(True, detail, **figures)
     return _check(False, "no geom can touch a floor of contype=1 conaffinity=1", **figures)
+
+
+def _missing_mesh(ref: Reference, g: Any) -> bool:
+    """A mesh shape whose file the conversion's resolver cannot find as a regular file."""
+    if g.mesh is None:
+        return False
+    try:
+        return not ref.resolve(g.mesh.filename).is_file()
+    except Exception:  # unresolvable (an unknown package): missing as far as anyone can tell
+        return True
 
 
 def _unknown(g: Any) -> bool:
