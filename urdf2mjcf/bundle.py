@@ -16,7 +16,7 @@ import json
 from pathlib import Path, PurePosixPath
 
 from . import untrusted
-from .errors import ConversionError, FacilityError
+from .errors import BundleError, ForgeError
 
 MANIFEST = "facility.json"
 SCENE = "scene.xml"
@@ -39,10 +39,6 @@ PUBLISHED_DEMO = "imetro.yaml"
 """The published demo, for a recipe with none of its own."""
 
 
-class BundleError(FacilityError):
-    """A bundle lacks a file or a field, or is of another schema version."""
-
-
 def demo_source(root: Path, recipe_name: str) -> Path | None:
     """The demo a facility of ``recipe_name`` is built for: ``recipes/demo/<name>.yaml``
     under the facility root when there is one (the compact layout's), else the published
@@ -56,9 +52,7 @@ def demo_source(root: Path, recipe_name: str) -> Path | None:
     return published if published.is_file() else None
 
 
-def facility_files(
-    path: str | Path, *, error: type[ConversionError] = BundleError
-) -> tuple[Path, Path]:
+def facility_files(path: str | Path, *, error: type[ForgeError] = BundleError) -> tuple[Path, Path]:
     """``(scene.xml, facility.json)`` of a bundle given as its folder or a scene file;
     ``error`` naming the path when it is not one."""
     path = Path(path)
@@ -80,7 +74,7 @@ def facility_files(
     return scene, manifest
 
 
-def read_manifest(path: Path, *, error: type[ConversionError] = BundleError) -> dict:
+def read_manifest(path: Path, *, error: type[ForgeError] = BundleError) -> dict:
     """A facility.json of this :data:`SCHEMA_VERSION` as a dict with a ``components``
     mapping; ``error`` naming the file (and the field) otherwise."""
     raw = untrusted.read_file(path, "report", error=error, what="manifest")
@@ -98,9 +92,7 @@ def read_manifest(path: Path, *, error: type[ConversionError] = BundleError) -> 
     return data
 
 
-def check_schema_version(
-    data: dict, path: Path, *, error: type[ConversionError] = BundleError
-) -> None:
+def check_schema_version(data: dict, path: Path, *, error: type[ForgeError] = BundleError) -> None:
     """The manifest's ``schema_version`` is the one this version reads."""
     version = data.get("schema_version")
     if type(version) is int and version == SCHEMA_VERSION:
@@ -119,7 +111,7 @@ def bundled_file(
     key: str,
     path: Path,
     *,
-    error: type[ConversionError] = BundleError,
+    error: type[ForgeError] = BundleError,
 ) -> Path | None:
     """The file the manifest's ``bundle.<key>`` names inside ``folder`` (``path``: the
     manifest, for errors); None when it names none (``null``). A name that is not a

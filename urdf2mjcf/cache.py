@@ -57,7 +57,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import ConversionError, OutputError
+from .errors import ForgeError, OutputError
 from .untrusted import env_number, limit_bytes, printable
 
 logger = logging.getLogger(__name__)
@@ -338,7 +338,7 @@ _totals: dict[Path, int] = {}
 def _wrote(root: Path, size: int, ours: bool) -> None:
     try:
         limit = max_bytes()
-    except ConversionError as exc:  # checked when the cache was opened; changed since
+    except ForgeError as exc:  # checked when the cache was opened; changed since
         logger.warning("%s; the cache is not held to a bound", exc)
         return
     key = _root_key(root)

@@ -21,7 +21,7 @@ from typing import Any
 import click
 
 from . import headless
-from .errors import ConversionError
+from .errors import ForgeError
 from .untrusted import printable
 
 ERROR_LINE_MAX = 2000
@@ -52,7 +52,7 @@ def run_command(
 ) -> None:
     """Run ``command`` so that every failure is one ``error:`` line on stderr.
 
-    Bad input or usage: exit code 2. A ``ConversionError`` is the usual path for
+    Bad input or usage: exit code 2. A ``ForgeError`` (any product's) is the usual path for
     bad input; the ``Exception`` guard at the end is the last resort for a bug
     (exit code 1). ``--debug`` prints the traceback as well.
     """
@@ -77,7 +77,7 @@ def run_command(
             f"error: {command.name} terminated (SIGTERM); its unfinished output removed", err=True
         )
         sys.exit(128 + signal.SIGTERM)
-    except ConversionError as exc:  # bad input: one line, never a traceback (-vv logs it)
+    except ForgeError as exc:  # bad input: one line, never a traceback (-vv logs it)
         logging.getLogger(__name__).debug("%s failed", command.name, exc_info=True)
         if debug:
             traceback.print_exc()

@@ -16,7 +16,7 @@ from typing import Any
 
 import click
 
-from .errors import ConversionError
+from .errors import MissingExtraError
 
 EXTRAS: dict[str, tuple[str, ...]] = {
     # IK (mink), collision-free planning (ompl) and its time parameterisation (toppra),
@@ -32,10 +32,6 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 }
 """Extra name -> the modules it provides (import names, as pyproject.toml's extra installs
 them: cv2 is opencv-python-headless)."""
-
-
-class MissingExtraError(ConversionError):
-    """A command needs an optional extra that is not installed."""
 
 
 def missing(modules: Sequence[str]) -> list[str]:

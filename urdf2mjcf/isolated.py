@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from .errors import ConversionError
+from .errors import ForgeError
 
 T = TypeVar("T")
 
@@ -37,7 +37,7 @@ _CHUNK = 1 << 20
 
 
 class ChildFailed(Exception):
-    """The function raised a :class:`ConversionError` in the child: its parts."""
+    """The function raised a :class:`~urdf2mjcf.errors.ForgeError` in the child: its parts."""
 
     def __init__(self, detail: str, file: str | None, element: str | None):
         super().__init__(detail)
@@ -46,7 +46,7 @@ class ChildFailed(Exception):
 
 class ChildLost(Exception):
     """The child gave no result: its time ran out, it died (a crash, out of memory)
-    or it raised something other than a :class:`ConversionError`."""
+    or it raised something other than a :class:`~urdf2mjcf.errors.ForgeError`."""
 
 
 def can_fork() -> bool:
@@ -56,7 +56,7 @@ def can_fork() -> bool:
 def call(fn: Callable[[], T], *, timeout: float, memory: int | None = None) -> T:
     """``fn()`` computed in a forked child within ``timeout`` seconds and ``memory``
     bytes of address space beyond what this process holds; its value, pickled back.
-    :class:`ChildFailed` when it raised a :class:`ConversionError`, :class:`ChildLost`
+    :class:`ChildFailed` when it raised a :class:`~urdf2mjcf.errors.ForgeError`, :class:`ChildLost`
     when it gave nothing. SIGTERM or Ctrl-C meanwhile ends the child and raises here
     as the caller's handlers say."""
     if not can_fork():
@@ -119,7 +119,7 @@ def _cap_address_space(memory: int) -> None:
 def _outcome(fn: Callable[[], Any]) -> tuple[str, Any]:
     try:
         return ("value", fn())
-    except ConversionError as exc:
+    except ForgeError as exc:
         return ("failed", (exc.detail, exc.file, exc.element))
     except BaseException as exc:  # MuJoCo's own failures: out of memory, a bad_alloc
         return ("lost", f"{type(exc).__name__}: {exc}")

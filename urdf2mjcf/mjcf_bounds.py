@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from . import untrusted
-from .errors import ConversionError
+from .errors import ForgeError
 from .mjcf_files import ELEMENTS_MAX, POINTS, Model, label, origin
 
 BODIES_MAX = 10_000
@@ -61,7 +61,7 @@ _BIG = 10**18  # totals are clamped here: a bomb's count stays a small integer
 _FLEX_BODIES_FEW = {"trilinear": 8, "quadratic": 27}
 
 
-def check_model(model: Model, error: type[ConversionError]) -> None:
+def check_model(model: Model, error: type[ForgeError]) -> None:
     """``model`` (and its ``<model>`` assets) within the bounds above, counted on its
     expanded element tree; ``error`` naming the first element past one."""
     totals: dict[str, tuple[int, int, int]] = {}
@@ -74,7 +74,7 @@ def check_model(model: Model, error: type[ConversionError]) -> None:
     _over(points, FLEX_POINTS_MAX, "flexcomp points", model.path, None, error)
 
 
-def _over(n: int, limit: int, what: str, file: str, el: Any, error: type[ConversionError]) -> None:
+def _over(n: int, limit: int, what: str, file: str, el: Any, error: type[ForgeError]) -> None:
     if n > limit:
         where = "expands to" if el is not None and el.tag in ("replicate", "attach") else "has"
         raise error(
@@ -87,10 +87,10 @@ def _over(n: int, limit: int, what: str, file: str, el: Any, error: type[Convers
 class _Count:
     """Elements, bodies and flexcomp points of one model's tree, counted bottom up."""
 
-    def __init__(self, model: Model, error: type[ConversionError], done: dict):
+    def __init__(self, model: Model, error: type[ForgeError], done: dict):
         self.model, self.error, self.done = model, error, done
 
-    def fail(self, message: str, el: Any) -> ConversionError:
+    def fail(self, message: str, el: Any) -> ForgeError:
         return self.error(message, file=origin(el, self.model), element=label(el))
 
     def run(self) -> tuple[int, int, int]:
@@ -230,7 +230,7 @@ _ITERATIONS = (
 _CUBE_TYPES = ("mjTEXTURE_CUBE", "mjTEXTURE_SKYBOX")
 
 
-def check_spec(spec: Any, file: str, error: type[ConversionError]) -> None:
+def check_spec(spec: Any, file: str, error: type[ForgeError]) -> None:
     """MuJoCo's parse of a model (an ``MjSpec``) within the bounds on what compiling
     it allocates; ``error`` naming the element past one."""
 
@@ -284,7 +284,7 @@ def image_pixels(head: bytes) -> int | None:
     return None
 
 
-def check_images(found: list[tuple[str, str]], file: str, error: type[ConversionError]) -> None:
+def check_images(found: list[tuple[str, str]], file: str, error: type[ForgeError]) -> None:
     """The texture and height-field images among ``found`` (``(path, tag)``) within
     :data:`PIXELS_MAX` and :data:`HFIELD_SAMPLES_MAX`, read from their headers: a
     small PNG can claim 10^10 pixels, which decoding would allocate."""
@@ -320,7 +320,7 @@ _PARTS = ("", "opt", "stat", "vis.global_", "vis.quality", "vis.headlight", "vis
           "vis.scale", "vis.rgba")  # fmt: skip
 
 
-def check_compiled(m: Any, file: str, error: type[ConversionError]) -> None:
+def check_compiled(m: Any, file: str, error: type[ForgeError]) -> None:
     """Every number of the compiled model ``m`` finite (``timestep="nan"``, or a number
     too big for a 32-bit float, is refused: nothing computed from it would mean
     anything, and a NaN in a report is not JSON)."""

@@ -33,7 +33,7 @@ from lxml import etree
 
 from . import mjcf_paths as paths
 from . import untrusted
-from .errors import ConversionError
+from .errors import ForgeError
 
 DOCUMENTS_MAX = 1_000
 """Files one model reads while MuJoCo parses it: itself, its includes and its
@@ -111,7 +111,7 @@ def exists(path: str) -> bool:
     return True
 
 
-def read_model(path: Path | str, *, error: type[ConversionError], what: str = "model") -> Model:
+def read_model(path: Path | str, *, error: type[ForgeError], what: str = "model") -> Model:
     """The model at ``path`` (and every document it reads) read as MuJoCo will read
     it when given :attr:`Model.path`; every file it reads while MuJoCo parses it
     checked. ``error`` (naming the file and element) for anything else."""
@@ -120,14 +120,14 @@ def read_model(path: Path | str, *, error: type[ConversionError], what: str = "m
 
 
 class _Reader:
-    def __init__(self, error: type[ConversionError]):
+    def __init__(self, error: type[ForgeError]):
         self.error = error
         self.documents = 0
         self.tags = 0
         self.bytes = 0
         self.points: dict[str, int] = {}  # per flexcomp file, counted once
 
-    def fail(self, message: str, file: str, el: Any | None = None) -> ConversionError:
+    def fail(self, message: str, file: str, el: Any | None = None) -> ForgeError:
         return self.error(message, file=file, element=label(el) if el is not None else None)
 
     def model(self, path: str, *, what: str, chain: tuple[str, ...]) -> Model:
@@ -148,7 +148,7 @@ class _Reader:
             untrusted.check_regular(path, "description", error=self.error, what=what)
             refuse_kernel_file(path, self.error, at or path, element)
             data = untrusted.read_file(path, "description", error=self.error, what=what)
-        except ConversionError as exc:  # named by the file and element that name it
+        except ForgeError as exc:  # named by the file and element that name it
             raise self.error(exc.detail, file=at or path, element=element) from None
         self.tags += data.count(b"<")  # each element opens (and closes): bounded before parsing
         self.bytes += len(data)
@@ -264,9 +264,7 @@ class _Reader:
         el.set(POINTS, str(max(self.points[p] for p in found)))
 
 
-def check_asset_files(
-    spec: Any, model: Model, error: type[ConversionError]
-) -> list[tuple[str, str]]:
+def check_asset_files(spec: Any, model: Model, error: type[ForgeError]) -> list[tuple[str, str]]:
     """Every file MuJoCo opens compiling ``spec`` (its parse of ``model``) checked in
     every folder it may look in: the file name as its parse recorded it (an include's
     folder already prepended where it fell back to one), under the compiler's
@@ -307,7 +305,7 @@ def _asset_label(tag: str, obj: Any) -> str:
     return f"<{tag}{shown}>" + (f" ({info})" if info and info != "line 0" else "")
 
 
-def check_name(value: str, attr: str, el: Any, file: str, error: type[ConversionError]) -> None:
+def check_name(value: str, attr: str, el: Any, file: str, error: type[ForgeError]) -> None:
     """A file or folder name MuJoCo will take as we do: no ``:`` (MuJoCo reads
     ``scheme:`` as a resource provider and ``x:/`` as absolute)."""
     if ":" in value:
@@ -338,7 +336,7 @@ def checked_files(
     names: list[str],
     models: list[Model],
     kind: str,
-    error: type[ConversionError],
+    error: type[ForgeError],
     file: str,
     element: str,
     dirs: set[str] | None = None,
@@ -352,7 +350,7 @@ def checked_files(
     for path in found:
         try:
             size = untrusted.check_regular(path, kind, error=error)
-        except ConversionError as exc:  # named by the file and element that name it
+        except ForgeError as exc:  # named by the file and element that name it
             raise error(exc.detail, file=file, element=element) from None
         refuse_kernel_file(path, error, file, element)
         if size == 0:
@@ -363,9 +361,7 @@ def checked_files(
 _KERNEL = ("/proc", "/sys", "/dev")
 
 
-def refuse_kernel_file(
-    path: str, error: type[ConversionError], file: str, element: str | None
-) -> None:
+def refuse_kernel_file(path: str, error: type[ForgeError], file: str, element: str | None) -> None:
     """``error`` when ``path`` leads into ``/proc``, ``/sys`` or ``/dev``: some of their
     regular files block a reader (``/proc/kmsg``, a trace pipe), and MuJoCo reads
     assets itself, waiting."""
@@ -380,7 +376,7 @@ def refuse_kernel_file(
         )
 
 
-def parse_document(data: bytes, path: str, error: type[ConversionError]) -> Any:
+def parse_document(data: bytes, path: str, error: type[ForgeError]) -> Any:
     """``data`` as an element tree, refused unless MuJoCo's XML reader (tinyxml2) and
     ours read the same elements and file names from it."""
     for match in _RAW_NAME.finditer(data):

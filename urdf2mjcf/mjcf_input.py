@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from . import isolated, mjcf_bounds, mjcf_files
-from .errors import ConversionError, InputError
+from .errors import ForgeError, InputError
 
 COMPILE_TIMEOUT = 300.0
 """Seconds MuJoCo may take to parse and compile a model (the largest one the bounds
@@ -42,7 +42,7 @@ ours (MuJoCo reserves ``<size memory>``, up to 16 GiB, while it compiles)."""
 
 
 def load_model(
-    path: Path | str, *, error: type[ConversionError] = InputError, what: str = "model"
+    path: Path | str, *, error: type[ForgeError] = InputError, what: str = "model"
 ) -> Any:
     """The ``mujoco.MjModel`` of the MJCF file at ``path``, a stranger's input;
     ``error`` (one line naming the file and element) for anything we refuse or
@@ -51,14 +51,14 @@ def load_model(
 
 
 def check_files(
-    path: Path | str, *, error: type[ConversionError] = InputError, what: str = "model"
+    path: Path | str, *, error: type[ForgeError] = InputError, what: str = "model"
 ) -> None:
     """What :func:`load_model` checks, without compiling: for a program that then has
     MuJoCo open ``path`` itself (the viewer)."""
     _run(path, error, what, compile=False)
 
 
-def _run(path: Path | str, error: type[ConversionError], what: str, *, compile: bool) -> Any:
+def _run(path: Path | str, error: type[ForgeError], what: str, *, compile: bool) -> Any:
     model = mjcf_files.read_model(path, error=error, what=what)
     mjcf_bounds.check_model(model, error)
     try:
@@ -73,7 +73,7 @@ def _run(path: Path | str, error: type[ConversionError], what: str, *, compile: 
         raise error(f"MuJoCo could not compile it: {exc}", file=path) from None
 
 
-def _in_child(model: mjcf_files.Model, error: type[ConversionError], compile: bool) -> Any:
+def _in_child(model: mjcf_files.Model, error: type[ForgeError], compile: bool) -> Any:
     """Parse, check what the parse names and allocates, compile, check the numbers."""
     import warnings
 

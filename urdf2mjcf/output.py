@@ -31,7 +31,7 @@ from contextvars import ContextVar
 from pathlib import Path, PurePosixPath
 from typing import Any, BinaryIO
 
-from .errors import ConversionError, OutputError
+from .errors import ForgeError, OutputError
 from .untrusted import limit_bytes, read_file
 
 log = logging.getLogger(__name__)
@@ -376,7 +376,7 @@ def _json_object(path: Path) -> dict | None:
     at an output path must not block us) or is over the report size limit."""
     try:
         data = json.loads(read_file(path, "report").decode("utf-8"))
-    except (ConversionError, OSError, UnicodeDecodeError, ValueError):
+    except (ForgeError, OSError, UnicodeDecodeError, ValueError):
         return None
     return data if isinstance(data, dict) else None
 

@@ -22,7 +22,7 @@ from typing import Any
 import yaml
 
 from . import untrusted
-from .errors import ConversionError, InputError
+from .errors import ForgeError, InputError
 
 Key = tuple[str, ...]
 
@@ -46,7 +46,7 @@ class Source:
     lines: dict[Key, int] = field(default_factory=dict)
     overridden: set[Key] = field(default_factory=set)
     """Keys whose value came from elsewhere (``--set``): they get no line."""
-    error: type[ConversionError] = InputError
+    error: type[ForgeError] = InputError
 
     def line(self, key: str) -> int | None:
         """The line of ``key`` (or of the nearest enclosing key in the file)."""
@@ -58,7 +58,7 @@ class Source:
                 return self.lines[path[:n]]
         return None
 
-    def fail(self, key: str, message: str) -> ConversionError:
+    def fail(self, key: str, message: str) -> ForgeError:
         """The error for ``key``: ``file: key: message (line N)`` (the line last, so that
         the error's file and element stay a path and a key)."""
         line = self.line(key) if key else None
@@ -204,8 +204,11 @@ class _Constructor(yaml.constructor.SafeConstructor):
         except (ValueError, KeyError, TypeError, AttributeError, OverflowError) as exc:
             # an explicit tag PyYAML cannot build (!!int abc, !!bool maybe, !!timestamp x)
             raise yaml.constructor.ConstructorError(
-                None, None, f"cannot read {node.tag} '{untrusted.excerpt(str(node.value), 40)}'"
-                f" ({type(exc).__name__})", node.start_mark
+                None,
+                None,
+                f"cannot read {node.tag} '{untrusted.excerpt(str(node.value), 40)}'"
+                f" ({type(exc).__name__})",
+                node.start_mark,
             ) from None
 
     def construct_bounded_number(self, node: Any) -> Any:
@@ -350,15 +353,13 @@ def parse(text: str | bytes, loader_type: type[Loader] = Loader) -> tuple[Any, d
     return data, lines
 
 
-def load(
-    path: Path | str, what: str, error: type[ConversionError] = InputError
-) -> tuple[Any, Source]:
+def load(path: Path | str, what: str, error: type[ForgeError] = InputError) -> tuple[Any, Source]:
     """A YAML file's data and its :class:`Source`; an ``error`` naming the file (and the
     line) when it is missing, unreadable, not text or not YAML."""
     # regular files only, at most the yaml size limit: a FIFO or /dev/zero is refused
     try:
         raw = untrusted.read_file(path, "yaml", error=error, what="file")
-    except ConversionError as exc:
+    except ForgeError as exc:
         raise error(f"cannot read {what}: {exc.detail}", file=path) from None
     try:
         text = raw.decode("utf-8")

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from .errors import ConversionError, InputError
+from .errors import BadNumber, ConversionError, ForgeError, InputError, YamlBombError
 
 LIMITS_MB: dict[str, tuple[float, str]] = {
     "description": (64, "a URDF, xacro or MJCF file and each file it includes"),
@@ -85,7 +85,7 @@ def check_regular(
     path: Path | str,
     kind: str,
     *,
-    error: type[ConversionError] = InputError,
+    error: type[ForgeError] = InputError,
     element: str | None = None,
     what: str = "file",
 ) -> int:
@@ -120,7 +120,7 @@ def read_file(
     path: Path | str,
     kind: str,
     *,
-    error: type[ConversionError] = InputError,
+    error: type[ForgeError] = InputError,
     element: str | None = None,
     what: str = "file",
 ) -> bytes:
@@ -180,10 +180,6 @@ def is_regular(path: Path | str) -> bool:
 # -- YAML --------------------------------------------------------------------------------
 
 
-class YamlBombError(ValueError):
-    """A YAML document whose aliases expand past :data:`YAML_MAX_NODES`."""
-
-
 def check_yaml_size(node: Any, limit: int = YAML_MAX_NODES) -> None:
     """Raise :class:`YamlBombError` when the composed node graph ``node`` expands (each
     alias counted every time it is used) to more than ``limit`` nodes. Linear in the
@@ -229,10 +225,6 @@ _LEADING_ZERO = re.compile(r"[-+]?0[0-9]")
 _INTEGER = re.compile(r"[-+]?[0-9]+")
 
 
-class BadNumber(ValueError):
-    """Why a value is not a number we use; its text is the one-line error's message."""
-
-
 def shown(value: Any, limit: int = 40) -> str:
     """``value`` as an error line quotes it: short, one line, printable (an integer too
     long for ``str`` is described, not converted)."""
@@ -262,8 +254,7 @@ def parse_number(value: Any) -> float:
             raise BadNumber(f"'{excerpt(text, 40)}' is not a number")
         if _LEADING_ZERO.match(text) and _INTEGER.fullmatch(text):
             raise BadNumber(
-                f"'{text}' is not a number: a leading zero is octal in YAML 1.1; "
-                "write it without"
+                f"'{text}' is not a number: a leading zero is octal in YAML 1.1; write it without"
             )
         x = float(text)
     elif isinstance(value, numbers.Real):  # int, float, numpy's
@@ -353,9 +344,7 @@ def printable(text: str) -> str:
     if text.isascii():
         return _CONTROL.sub(lambda m: _escape(m.group()), text)
     return "".join(
-        _escape(ch)
-        if ch not in "\t\n" and unicodedata.category(ch) in _HIDDEN
-        else ch
+        _escape(ch) if ch not in "\t\n" and unicodedata.category(ch) in _HIDDEN else ch
         for ch in text
     )
 

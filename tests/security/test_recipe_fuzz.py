@@ -2,7 +2,7 @@
 recipes (``recipes/*.yaml``, their component table inlined) and demo files
 (``recipes/demo/*.yaml``) with random values put at random keys (NaN, inf, huge
 and negative numbers, text, lists, nulls, mappings, deep nesting), read from a
-file as a user's would be, give a result or a ``ConversionError``, never another
+file as a user's would be, give a result or a ``ForgeError``, never another
 exception; a ``--set`` of any text at any key likewise. A result that is accepted
 holds only finite numbers. The example counts are bounded for CI."""
 
@@ -19,7 +19,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from urdf2mjcf.errors import ConversionError
+from urdf2mjcf.errors import ForgeError
 from urdf2mjcf.facility.recipe import Recipe, load_recipe
 from urdf2mjcf.runner.waypoints import read_waypoints
 
@@ -145,7 +145,7 @@ def test_a_mutated_recipe_is_a_recipe_or_one_conversion_error(folder, data):
     path = _write(folder, data)
     try:
         recipe = load_recipe(path, root=ROOT)
-    except ConversionError as exc:
+    except ForgeError as exc:
         assert str(exc).strip()
         return
     _check_recipe(recipe)
@@ -174,7 +174,7 @@ def test_any_set_of_any_text_is_a_recipe_or_one_conversion_error(folder, doc, ke
     path = _write(folder, doc)
     try:
         recipe = load_recipe(path, {key: text}, root=ROOT)
-    except ConversionError:
+    except ForgeError:
         return
     _check_recipe(recipe)
 
@@ -185,6 +185,6 @@ def test_a_mutated_waypoints_file_is_checked_or_one_conversion_error(folder, dat
     path = _write(folder, data)
     try:
         spec = read_waypoints(path)
-    except ConversionError:
+    except ForgeError:
         return
     assert _numbers_finite(spec)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConversionError
+from ..errors import CertificateFailed, ConversionError
 from ..ir import Model, Note
 from ..mjmodel import PassiveRun
 from .kinematics import NameMap
@@ -260,18 +260,6 @@ def not_finite(sections: Mapping[str, Any]) -> list[str]:
         elif isinstance(value, list | tuple):
             stack.extend((f"{where}[{i}]", v) for i, v in enumerate(value))
     return sorted(found)
-
-
-class CertificateFailed(ConversionError):
-    """``--verify``: the conversion's certificate failed; nothing has been written.
-
-    A :class:`ConversionError` for callers of the API; the command line reports the
-    failing figures and exits with code 1 (the input was fine: the result is not)."""
-
-    def __init__(self, certificate: Certificate, file: Path | str | None = None):
-        self.certificate = certificate
-        first = certificate.failures[0] if certificate.failures else certificate.summary()
-        super().__init__(f"certificate failed: {first}; nothing written", file=file)
 
 
 def certify(

@@ -125,4 +125,4 @@ def markdown_table() -> str:
 
 
 if __name__ == "__main__":  # python -m urdf2mjcf.certify.tolerances: the table for docs/cli.md
-    print(markdown_table())
+    print(markdown_table())  # noqa: T201 - a command: the table on stdout

@@ -30,7 +30,7 @@ from .. import api, bundle, untrusted
 from .. import output as out
 from .. import report as conversion_report
 from ..calibrate import apply as calib_apply
-from ..errors import ConversionError, InputError
+from ..errors import ForgeError, InputError
 from ..passes.emit import EmitResult
 from . import attach, fiducials, fold
 from .jitter import jittered
@@ -385,7 +385,7 @@ def _calibration_file(root: Path, recipe: Recipe, name: str, comp: Component) ->
         )
     try:
         calib_apply.load(file)
-    except ConversionError as exc:
+    except ForgeError as exc:
         at = f" {exc.element}" if exc.element else ""
         raise InputError(
             f"calibration file '{shown}'{at}: {exc.detail}", file=recipe.path or file, element=where
@@ -485,7 +485,10 @@ def recipe_text(recipe: Recipe) -> str:
     same bytes)."""
     # leaf lists and mappings in flow style, as the recipes write them ([x, y, z])
     body = yaml.safe_dump(
-        recipe_data(recipe), sort_keys=False, allow_unicode=True, width=100,
+        recipe_data(recipe),
+        sort_keys=False,
+        allow_unicode=True,
+        width=100,
         default_flow_style=None,
     )
     return RECIPE_HEADER + body
@@ -520,5 +523,3 @@ def _roles(
             roles = read_yaml(file, "roles file")  # a bad one is an error naming it
         out[name] = {"prefix": comp.prefix, "roles": roles, "free": comp.free}
     return out
-
-

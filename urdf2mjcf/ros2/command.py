@@ -10,14 +10,10 @@ import click
 
 from ..cli_common import configure_logging
 from ..cli_types import FiniteFloat
-from ..errors import ConversionError
+from ..errors import ServeError
 from ..untrusted import printable
 from ..view.live import PACE_MAX
 from .options import ros2_options, transport
-
-
-class ServeError(ConversionError):
-    """The model cannot be served as given."""
 
 
 @click.command("urdf2mjcf serve", context_settings={"help_option_names": ["-h", "--help"]})

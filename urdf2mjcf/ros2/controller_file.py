@@ -22,7 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..errors import ConversionError
+from ..errors import ControllerFileError
 from ..schema import load
 from .controllers import KINDS, Group
 
@@ -37,10 +37,6 @@ FORWARD = {
     "forward_command_controller/MultiInterfaceForwardCommandController": None,
 }
 SILENT = {"joint_state_broadcaster/JointStateBroadcaster"}
-
-
-class ControllerFileError(ConversionError):
-    """A controllers file that cannot be served as written."""
 
 
 @dataclass(frozen=True)

@@ -20,13 +20,11 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from ..errors import BadCommand
+
 KINDS = ("position", "velocity", "effort")
 GROUP_NAME = {k: f"forward_{k}_controller" for k in KINDS}
 TRAJECTORY_CONTROLLER = "joint_trajectory_controller"
-
-
-class BadCommand(ValueError):
-    """A command dropped as it is (the reason in the message)."""
 
 
 @dataclass(frozen=True)

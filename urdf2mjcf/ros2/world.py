@@ -6,13 +6,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConversionError
+from ..errors import ForgeError
 from .scans import Scans
 from .sensors import Sensors
 from .server import Extension, ServeConfig, Server
 
 
-def build(path: Path, config: ServeConfig, error: type[ConversionError]) -> Server:
+def build(path: Path, config: ServeConfig, error: type[ForgeError]) -> Server:
     """The server of ``path``: a model file (robot.xml, scene.xml), or a facility bundle
     (its folder, or its scene.xml beside facility.json) with its rovers, if any. Read as
     a stranger's files; ``error`` (a ConversionError) names what is refused."""

@@ -29,7 +29,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-from ..errors import ConversionError
+from ..errors import ExecutorError
 
 log = logging.getLogger(__name__)
 
@@ -41,10 +41,6 @@ RAY_INSTALL = "pip install 'mjcf-forge[ray]'"
 STOP_GRACE = 2.0
 """Seconds a worker has to end on SIGTERM (removing its temporary folders) before it is
 killed; the whole stop stays well within the 5 s a SIGTERM or Ctrl-C is given."""
-
-
-class ExecutorError(ConversionError):
-    """The executor asked for cannot be used (Ray missing, no cluster at the address)."""
 
 
 def run_jobs(

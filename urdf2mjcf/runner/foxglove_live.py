@@ -22,9 +22,9 @@ import time
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from ..errors import OutputError
+from ..errors import OutputError, PortError
 from .cdr import encoder
-from .foxglove_server import FoxgloveServer, ServeError
+from .foxglove_server import FoxgloveServer
 
 HOST = FoxgloveServer.HOST
 """Only this machine: a remote Foxglove reaches it through an SSH tunnel."""
@@ -56,7 +56,7 @@ class FoxgloveStream:
         self.d, self.pace = data, pace
         try:
             self._server = FoxgloveServer(port, name=name, origins=origins)
-        except ServeError as exc:  # the port is taken, or not ours to bind
+        except PortError as exc:  # the port is taken, or not ours to bind
             raise OutputError(
                 f"cannot serve on {HOST}:{port}: {exc.strerror}", element="--foxglove"
             ) from None

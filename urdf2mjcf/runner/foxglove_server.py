@@ -32,6 +32,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
+from ..errors import PortError
 from ..loopback_guard import SECURITY_HEADERS, Guard
 
 SUBPROTOCOLS = ("foxglove.sdk.v1", "foxglove.websocket.v1")
@@ -56,10 +57,6 @@ _U32 = 2**32
 _quiet = logging.getLogger(f"{__name__}.connections")
 _quiet.setLevel(logging.CRITICAL + 1)
 _quiet.propagate = False
-
-
-class ServeError(OSError):
-    """The server could not start (its port taken, or not ours to bind)."""
 
 
 @dataclass(frozen=True)
@@ -157,7 +154,7 @@ class FoxgloveServer:
             sock.listen(64)
         except OSError as exc:
             sock.close()
-            raise ServeError(exc.errno, exc.strerror) from None
+            raise PortError(exc.errno, exc.strerror) from None
         self.port = int(sock.getsockname()[1])
         self.guard = Guard(self.port, frozenset(origins), None, self.HOST)
         self._ready = threading.Event()

@@ -16,13 +16,9 @@ import numpy as np
 
 from .. import bundle, mjcf_input
 from ..bundle import MANIFEST
-from ..errors import FacilityError
+from ..errors import LoadError
 from ..limits import TIMESTEP_RANGE
 from ..untrusted import excerpt
-
-
-class LoadError(FacilityError):
-    """The facility lacks something the runner needs (a file, a role, a name)."""
 
 
 def lookup(

@@ -42,6 +42,7 @@ from typing import Any, ClassVar
 import mujoco
 import numpy as np
 
+from ..errors import StepError
 from ..limits import TAG_COUNT
 from . import ik, localize, perception
 from .checks import (
@@ -64,10 +65,6 @@ from .checks import (
 )
 from .control import path_duration
 from .hinge import arc, hinge_axis, turned
-
-
-class StepError(RuntimeError):
-    """A step cannot be carried out (unreachable pose, nothing seen)."""
 
 
 class Step:

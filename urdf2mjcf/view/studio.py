@@ -13,16 +13,12 @@ import webbrowser
 from collections.abc import Iterable
 from pathlib import Path
 
-from ..errors import ConversionError
+from ..errors import ViewerError
 
 STARTUP_S = 150.0
 """Seconds the viewer may take to start (the child's own limit is a little shorter)."""
 LOAD_S = 120.0
 """Seconds one model may take to load in the viewer (a facility's meshes, compiled)."""
-
-
-class ViewerError(ConversionError):
-    """The viewer could not start, or stopped."""
 
 
 def has_display() -> bool:

@@ -25,7 +25,7 @@ from typing import Any
 
 import click
 
-from ..errors import ConversionError
+from ..errors import ConversionError, ForgeError
 from ..untrusted import printable
 from .studio import Studio, check_desktop, check_studio, open_browser
 
@@ -169,7 +169,7 @@ def serve(
         with recording_reads() as opened:
             try:
                 report = convert(folder / "robot.xml")
-            except ConversionError as exc:
+            except ForgeError as exc:
                 read = inputs(opened, ignore) | {source.resolve()}
                 if generation == 1:
                     raise

@@ -59,44 +59,38 @@ NUMBER_MAX = 1e6
 """Magnitude of a commanded number, at most (then clipped to the actuator's range)."""
 
 
-class ApiError(Exception):
-    def __init__(self, message: str, status: int = 400):
-        super().__init__(message)
-        self.status = status
-
-
 def _number(value: Any, where: str) -> float:
     # bool is an int in Python, never a speed
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ApiError(f"{where}: {json.dumps(value)[:40]} is not a finite number")
+        raise CommandError(f"{where}: {json.dumps(value)[:40]} is not a finite number")
     try:
         x = float(value)
     except OverflowError:
         x = math.inf
     if not math.isfinite(x):
-        raise ApiError(f"{where}: not a finite number")
+        raise CommandError(f"{where}: not a finite number")
     if abs(x) > NUMBER_MAX:
-        raise ApiError(f"{where}: {x:g} is out of range (at most {NUMBER_MAX:g} either way)")
+        raise CommandError(f"{where}: {x:g} is out of range (at most {NUMBER_MAX:g} either way)")
     return x
 
 
 def _digits(text: str) -> str:
     if len(text) > DIGITS_MAX:
-        raise ApiError(f"a number of {len(text)} characters (at most {DIGITS_MAX})")
+        raise CommandError(f"a number of {len(text)} characters (at most {DIGITS_MAX})")
     return text
 
 
 def _object(value: Any, where: str, keys: tuple[str, ...]) -> dict:
     if not isinstance(value, dict):
-        raise ApiError(f"{where}: expected a JSON object")
+        raise CommandError(f"{where}: expected a JSON object")
     extra = [k for k in value if k not in keys]
     if extra:
-        raise ApiError(f"{where}: unknown key {extra[0]!r}; keys: {', '.join(keys)}")
+        raise CommandError(f"{where}: unknown key {extra[0]!r}; keys: {', '.join(keys)}")
     return value
 
 
 def _no_constants(name: str) -> Any:
-    raise ApiError(f"{name} is not a number")
+    raise CommandError(f"{name} is not a number")
 
 
 class Console:
@@ -157,13 +151,13 @@ class Console:
             name, camera = parts[2], parts[3][: -len(".png")]
             cams = self.sim.driven(name).cameras
             if camera not in cams:
-                raise ApiError(f"{name}: no camera {camera!r}; cameras: {', '.join(cams)}", 404)
+                raise CommandError(f"{name}: no camera {camera!r}; cameras: {', '.join(cams)}", 404)
             try:
                 t, png = self.cameras.png(cams[camera])
             except CameraUnavailable as exc:
-                raise ApiError(str(exc), 503) from None
+                raise CommandError(str(exc), 503) from None
             return "image/png", png, {"X-Sim-Time": repr(t)}
-        raise ApiError(f"no such path: GET {path}", 404)
+        raise CommandError(f"no such path: GET {path}", 404)
 
     def post(self, path: str, body: Any) -> Any:
         """The answer to ``POST path`` with the JSON ``body`` (None: no body)."""
@@ -176,7 +170,7 @@ class Console:
                 rover = _object(body, path, ("rover",)).get("rover")
                 names = None if rover is None else [rover]
             return self.sim.estop(names) if path == "/estop" else self.sim.release(names)
-        raise ApiError(f"no such path: POST {path}", 404)
+        raise CommandError(f"no such path: POST {path}", 404)
 
     def _command(self, body: Any) -> Any:
         body = _object(body, "/command", ("rover", "wheels", "arm"))
@@ -188,21 +182,21 @@ class Console:
         if "wheels" in body:
             w = _object(body["wheels"], "wheels", ("left", "right"))
             if set(w) != {"left", "right"}:
-                raise ApiError("wheels: give both 'left' and 'right' (rad/s)")
+                raise CommandError("wheels: give both 'left' and 'right' (rad/s)")
             wheels = (_number(w["left"], "wheels.left"), _number(w["right"], "wheels.right"))
         arm = None
         if "arm" in body:
             a = body["arm"]
             if not isinstance(a, dict):
-                raise ApiError("arm: expected a JSON object {JOINT: rad}")
+                raise CommandError("arm: expected a JSON object {JOINT: rad}")
             arm = {str(j): _number(v, f"arm.{j}") for j, v in a.items()}
         if wheels is None and arm is None:
-            raise ApiError("/command: give 'wheels' and/or 'arm'")
+            raise CommandError("/command: give 'wheels' and/or 'arm'")
         return self.sim.command(name, wheels, arm)
 
     def _running(self, answer: Any) -> Any:
         if self.sim.error is not None:
-            raise ApiError(f"the simulation stopped: {self.sim.error!r}", 500)
+            raise CommandError(f"the simulation stopped: {self.sim.error!r}", 500)
         return answer
 
 
@@ -301,7 +295,7 @@ class _Handler(BaseHTTPRequestHandler):
             pass
 
     def _check(self) -> None:
-        """The guard: raises ApiError where we do not answer; notes the cookie to set."""
+        """The guard: raises CommandError where we do not answer; notes the cookie to set."""
         h = self.headers
         refused = self.console.guard.check(
             self.path,
@@ -311,7 +305,7 @@ class _Handler(BaseHTTPRequestHandler):
             h.get_all("Cookie") or [],
         )
         if refused is not None:
-            raise ApiError(refused.reason, refused.status)
+            raise CommandError(refused.reason, refused.status)
         if self.command == "GET" and self.console.guard.token_in(self.path):
             self._cookie = self.console.guard.set_cookie()
 
@@ -320,7 +314,7 @@ class _Handler(BaseHTTPRequestHandler):
             self._check()
             path = urllib.parse.urlsplit(self.path).path
             status, (kind, body, headers) = 200, answer(path)
-        except (ApiError, CommandError) as exc:
+        except CommandError as exc:
             self._cookie = None
             status, (kind, body, headers) = exc.status, _json({"error": str(exc)})
         except Exception as exc:  # noqa: BLE001 - a bug answers 500, the server goes on
@@ -344,33 +338,33 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _body(self) -> Any:
         if self.headers.get("Transfer-Encoding"):
-            raise ApiError("send a Content-Length, not a chunked body", 411)
+            raise CommandError("send a Content-Length, not a chunked body", 411)
         lengths = self.headers.get_all("Content-Length") or []
         if len(set(lengths)) > 1:
-            raise ApiError("more than one Content-Length")
+            raise CommandError("more than one Content-Length")
         try:
             size = int(lengths[0]) if lengths else 0
         except ValueError:
-            raise ApiError("Content-Length is not a number") from None
+            raise CommandError("Content-Length is not a number") from None
         if size < 0:
-            raise ApiError("Content-Length is negative")
+            raise CommandError("Content-Length is negative")
         if size > BODY_MAX:
             if size <= DRAIN_MAX:  # read it, so the client gets to read our answer
                 self._read(size)
             self.close_connection = True
-            raise ApiError(f"body of {size} bytes is over {BODY_MAX}", 413)
+            raise CommandError(f"body of {size} bytes is over {BODY_MAX}", 413)
         raw = self._read(size) if size else b""
         if len(raw) < size:
             self.close_connection = True
-            raise ApiError(f"the body ended after {len(raw)} of its {size} bytes")
+            raise CommandError(f"the body ended after {len(raw)} of its {size} bytes")
         if not raw.strip():
             return None
         try:
-            return json.loads(
-                raw, parse_constant=_no_constants, parse_int=_int, parse_float=_float
-            )
+            return json.loads(raw, parse_constant=_no_constants, parse_int=_int, parse_float=_float)
+        except CommandError:  # a number refused while parsing: its own message
+            raise
         except (ValueError, RecursionError) as exc:  # UnicodeDecodeError is a ValueError
-            raise ApiError(f"body is not JSON: {exc}") from None
+            raise CommandError(f"body is not JSON: {exc}") from None
 
     def _read(self, size: int) -> bytes:
         """``size`` bytes of the body, or those that came within ``BODY_TIMEOUT_S``."""
@@ -379,7 +373,7 @@ class _Handler(BaseHTTPRequestHandler):
             return self.rfile.read(size)
         except TimeoutError:
             self.close_connection = True
-            raise ApiError(
+            raise CommandError(
                 f"the body did not arrive within {BODY_TIMEOUT_S:g} s (is Content-Length "
                 "its size?)",
                 408,

@@ -14,16 +14,14 @@ from concurrent.futures import Future
 import mujoco
 import numpy as np
 
+from ...errors import CameraUnavailable
+
 WIDTH = 320
 """Pixels across every console image; the height keeps the camera's aspect."""
 HEIGHT = 240
 """Pixels down where the facility gives no camera resolution."""
 WAIT_S = 30.0
 """Longest a request waits for its image."""
-
-
-class CameraUnavailable(RuntimeError):
-    """No image can be rendered here (no OpenGL context, or the renderer stopped)."""
 
 
 def image_sizes(m: mujoco.MjModel, manifest: Mapping) -> dict[int, tuple[int, int]]:

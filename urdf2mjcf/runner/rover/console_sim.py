@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ...errors import CommandError
 from .odometry import true_pose, yaw_of
 from .roles import Rover
 from .sim import RoverSim
@@ -24,14 +25,6 @@ LAG_MAX_S = 0.5
 catching up (a slow machine runs slower than asked, never in bursts)."""
 STOPPED = 0.05
 """rad/s: a braking wheel slower than this is held where it stands."""
-
-
-class CommandError(ValueError):
-    """A command the console refuses; ``status`` is its HTTP status."""
-
-    def __init__(self, message: str, status: int = 400):
-        super().__init__(message)
-        self.status = status
 
 
 @dataclass

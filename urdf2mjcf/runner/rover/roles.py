@@ -9,11 +9,8 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from ...errors import RoverError
 from ..load import LoadError, lookup
-
-
-class RoverError(LoadError):
-    """The facility lacks something the rover runner needs."""
 
 
 def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
