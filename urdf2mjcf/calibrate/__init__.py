@@ -9,5 +9,9 @@
   error minimised by bounded least squares, with intervals from the Jacobian;
 * :mod:`.report`: the figures and warnings, as ``report.json`` and ``report.html``;
 * :mod:`.apply`: identified values written into an MJCF document (``robot.xml``, and
-  ``urdf2mjcf SOURCE --calibration FILE`` on every later conversion).
+  ``urdf2mjcf SOURCE --calibration FILE`` on every later conversion);
+* :mod:`.run`: the chain itself: model and logs read, parameters fitted, files made.
+
+Beside it, :mod:`.against` replays logged runs in a model (``urdf2mjcf verify
+--against``) and :mod:`.excite` writes an excitation trajectory (``urdf2mjcf excite``).
 """

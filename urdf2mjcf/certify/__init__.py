@@ -12,6 +12,9 @@ is installed (:mod:`.dynamics`), collision geometry per link
 (:mod:`.checks`). What the model changed on purpose is listed
 (:mod:`.changes`); every figure is held to a :class:`~.tolerances.Tolerances`.
 
+The tolerances are :mod:`.tolerances`'s, figures that depend only on content are kept
+in the cache by :mod:`.stored`, and ``urdf2mjcf verify`` is :mod:`.command`.
+
 Used after every conversion (``api.convert``, on the staged files before they
 are installed; ``--verify`` makes a failing certificate fail the conversion)
 and by ``urdf2mjcf verify`` for any model against any description.

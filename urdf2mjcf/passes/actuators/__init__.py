@@ -6,6 +6,8 @@ Runs after the inertia pass and before emit. ``run`` fills
 ``Model.gravcomp``. A robot with no ``<ros2_control>``, no ``<transmission>``,
 no actuator file and no ``--gravcomp`` is returned unchanged.
 
+Default gains are designed from the robot's linearised dynamics by :mod:`.servo`.
+
 **Where actuators come from**, lowest precedence first, key by key:
 
 1. documented defaults (below);

@@ -1,8 +1,9 @@
 """Drive the MIRA3D rovers of a built facility and measure how far the odometry drifts.
 
-The runner knows only a compiled facility: ``scene.xml`` and ``facility.json``,
-whose components with wheel roles (``facility/robots/mira3d_rover/config/roles.yaml``,
-with each rover's prefix added by make-facility) are the rovers. It commands
+The rovers' runner reads a built bundle: ``facility.json`` and the ``scene.xml`` it
+names (and a plan a user passes), whose components with wheel roles
+(``facility/robots/mira3d_rover/config/roles.yaml``, with each rover's prefix added by
+make-facility) are the rovers. It commands
 them only through their actuators: wheel velocity servos (rad/s) and the arm's
 position servos (rad), one step of MuJoCo at a time, every rover at once.
 
