@@ -6,7 +6,10 @@ written; 2 on bad input (one ``error:`` line naming the file and element; nothin
 
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -14,7 +17,7 @@ from ..cli_common import configure_logging, quiet_option
 from ..cli_types import FiniteFloat
 from ..errors import InputError
 from . import params
-from .excite import ExciteConfig
+from .excite import CONTROLLER, ExciteConfig
 from .fit import FitConfig
 from .report import improvement
 from .run import GENERATOR, CalibrateConfig, calibrate
@@ -146,7 +149,19 @@ def calibrate_command(
     show_default=True,
     help="Largest setpoint speed (rad/s or m/s).",
 )
-@click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
+@click.option(
+    "--bag",
+    type=click.Path(path_type=Path),
+    help="Also write the setpoints as a rosbag2 folder (MCAP) holding one "
+    "trajectory_msgs/JointTrajectory on /<controller>/joint_trajectory, for 'ros2 bag play'.",
+)
+@click.option(
+    "--controller",
+    default=CONTROLLER,
+    show_default=True,
+    help="The joint trajectory controller the bag's topic is for.",
+)
+@click.option("--overwrite", is_flag=True, help="Replace an existing output file (or bag).")
 @quiet_option()
 def excite_command(
     model: Path,
@@ -154,14 +169,15 @@ def excite_command(
     duration: float,
     amplitude: float,
     max_velocity: float,
+    bag: Path | None,
+    controller: str,
     overwrite: bool,
     quiet: bool,
 ) -> None:
     """Write a multi-sine of position setpoints for MODEL.xml's servos, within 80 % of each
     joint's range, under --max-velocity and 90 % of each servo's force range in the model's
-    replay: run it on the robot and log it for 'urdf2mjcf calibrate'."""
-    import os
-
+    replay, its bodies clear of each other at the sampled configurations: run it on the
+    robot (or play --bag to its trajectory controller) and log it for 'urdf2mjcf calibrate'."""
     from ..errors import OutputError
     from ..mjcf_input import load_model
     from .excite import csv_text, excite
@@ -169,8 +185,19 @@ def excite_command(
     configure_logging(0, quiet)
     if os.path.lexists(output) and not overwrite:
         raise OutputError("already exists; pass --overwrite to replace it", file=output)
+    if bag is not None:
+        _check_bag_target(bag, overwrite)
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", controller):
+            raise click.BadParameter("not a ROS 2 name", param_hint="--controller")
     m = load_model(model)
-    e = excite(m, ExciteConfig(duration=duration, amplitude=amplitude, max_velocity=max_velocity))
+    try:
+        e = excite(
+            m, ExciteConfig(duration=duration, amplitude=amplitude, max_velocity=max_velocity)
+        )
+    except InputError as exc:  # the model cannot be excited as asked: name it
+        raise InputError(exc.detail, file=model) from None
+    if bag is not None:
+        _write_bag(e, m, bag, controller)
     output.parent.mkdir(parents=True, exist_ok=True)
     tmp = output.with_name(f".{output.name}.tmp")
     tmp.write_text(csv_text(e))
@@ -179,4 +206,41 @@ def excite_command(
         click.echo(
             f"{len(e.t)} setpoints over {duration:g} s, amplitude {e.amplitude:.3g}, "
             f"peak servo force {e.peak_force.max():.0%} of its range -> {output}"
+            + (f" and {bag} (/{controller}/joint_trajectory)" if bag is not None else "")
         )
+
+
+BAG_FILES = re.compile(r"metadata\.yaml|[^/]*\.(mcap|db3)")
+"""What a rosbag2 folder we write holds: only such a folder is replaced (--overwrite)."""
+
+
+def _check_bag_target(bag: Path, overwrite: bool) -> None:
+    from ..errors import OutputError
+
+    if not os.path.lexists(bag):
+        return
+    if not overwrite:
+        raise OutputError("already exists; pass --overwrite to replace it", file=bag)
+    if bag.is_symlink() or not bag.is_dir():
+        raise OutputError("is not a rosbag2 folder; not replaced", file=bag)
+    names = [p.name for p in bag.iterdir()]
+    if "metadata.yaml" not in names or not all(BAG_FILES.fullmatch(n) for n in names):
+        raise OutputError(
+            "holds files a rosbag2 folder does not (not replaced: remove it yourself)", file=bag
+        )
+
+
+def _write_bag(e: Any, m: Any, bag: Path, controller: str) -> None:
+    """The bag written beside ``bag`` and moved into place (the old one, ours, removed)."""
+    import shutil
+    import tempfile
+
+    from .excite import bag as write
+
+    bag.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix=f".{bag.name}.", dir=bag.parent) as tmp:
+        staged = Path(tmp) / bag.name
+        write(e, m, staged, controller)
+        if os.path.lexists(bag):
+            shutil.rmtree(bag)
+        os.replace(staged, bag)
