@@ -1,6 +1,7 @@
 """Logs as ROS 2 bags (rosbag2, MCAP and SQLite, written here with rosbags): JointState
 messages and a forward command controller's Float64MultiArray, written out of time order,
-calibrate as the same log as CSV does; a bag with no command messages is one error."""
+calibrate as the same log as CSV does, and so do a joint trajectory controller's
+JointTrajectory messages; a bag with no command messages is one error."""
 
 from __future__ import annotations
 
@@ -83,4 +84,71 @@ def test_a_bag_with_no_command_messages_is_one_error(case, tmp_path):
     bag = _bag(csv, tmp_path / "run", "mcap", commands=False)
     res = run("urdf2mjcf", "calibrate", str(nominal), str(bag), "-o", "cal", cwd=tmp_path)
     assert_one_error(res, "run", "lacks u.shoulder, u.elbow")
+    assert not (tmp_path / "cal").exists()
+
+
+def _trajectory_bag(csv: Path, dest: Path, joints: tuple[str, ...]) -> Path:
+    """The log as a joint trajectory controller's bag: JointState messages and the commands
+    as two JointTrajectory messages (the second replacing the rest of the first)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    types = store.types
+    js, traj = types["sensor_msgs/msg/JointState"], types["trajectory_msgs/msg/JointTrajectory"]
+    point, header_t = types["trajectory_msgs/msg/JointTrajectoryPoint"], types["std_msgs/msg/Header"]
+    time_t, dur_t = types["builtin_interfaces/msg/Time"], types["builtin_interfaces/msg/Duration"]
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+
+    def stamp(ns: int):
+        return time_t(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    half = len(data) // 2
+    with Writer(dest, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        states = w.add_connection("/joint_states", js.__msgtype__, typestore=store)
+        cmds = w.add_connection("/arm_controller/joint_trajectory", traj.__msgtype__, typestore=store)
+        for rows in (data[:half], data[half:]):
+            t0 = int(round(rows[0, 0] * 1e9))
+            points = []
+            for r in rows:
+                n = int(round(r[0] * 1e9)) - t0
+                after = dur_t(sec=n // 1_000_000_000, nanosec=n % 1_000_000_000)
+                points.append(point(positions=r[5:7], velocities=np.zeros(0),
+                                    accelerations=np.zeros(0), effort=np.zeros(0),
+                                    time_from_start=after))  # fmt: skip
+            msg = traj(header=header_t(stamp=stamp(t0), frame_id=""), joint_names=list(joints),
+                       points=points)  # fmt: skip
+            w.write(cmds, t0, store.serialize_cdr(msg, traj.__msgtype__))
+        for r in data:
+            ns = int(round(r[0] * 1e9))
+            msg = js(header=header_t(stamp=stamp(ns), frame_id=""), name=list(arm.JOINTS),
+                     position=r[1:3], velocity=r[3:5], effort=np.zeros(0))  # fmt: skip
+            w.write(states, ns, store.serialize_cdr(msg, js.__msgtype__))
+    return dest
+
+
+def test_a_joint_trajectory_bag_calibrates_as_its_csv_does(case, tmp_path):
+    """A bag whose commands are a joint trajectory controller's JointTrajectory messages
+    (what ``urdf2mjcf excite --bag`` writes and ``ros2 bag play`` sends) fits as the CSV
+    of the same run does."""
+    nominal, csv = case
+    bag = _trajectory_bag(csv, tmp_path / "run", arm.JOINTS)
+    found = {}
+    for name, log in (("bag", bag), ("csv", csv)):
+        res = run(
+            "urdf2mjcf", "calibrate", str(nominal), str(log), "-o", name, "--free", "damping",
+            cwd=tmp_path,
+        )  # fmt: skip
+        assert res.returncode == 0, res.stderr
+        report = json.loads((tmp_path / name / "report.json").read_text())
+        found[name] = {p["name"]: p["after"] for p in report["parameters"]}
+    assert found["bag"]["shoulder.damping"] == pytest.approx(1.5, rel=0.1)
+    assert found["bag"] == pytest.approx(found["csv"], rel=1e-3)
+
+
+def test_a_trajectory_for_a_joint_without_a_servo_is_one_error(case, tmp_path):
+    nominal, csv = case
+    bag = _trajectory_bag(csv, tmp_path / "run", ("shoulder", "wrist"))
+    res = run("urdf2mjcf", "calibrate", str(nominal), str(bag), "-o", "cal", cwd=tmp_path)
+    assert_one_error(res, "run", "joint 'wrist' has no position servo")
     assert not (tmp_path / "cal").exists()

@@ -73,9 +73,10 @@ def against(
 ) -> Against:
     """The compiled model ``m``'s tracking of the logs at ``log_paths``."""
     joints, actuators = params.joint_names(m), params.actuator_names(m)
+    servos = params.position_servos(m)
     dt = float(m.opt.timestep)
     trajectories = [
-        logs.resample(logs.read(p, actuators), joints, actuators, dt) for p in log_paths
+        logs.resample(logs.read(p, actuators, servos), joints, actuators, dt) for p in log_paths
     ]
     replay = fit.Replay(params.Applier(m, []), trajectories, fit.FitConfig(window=window))
     return Against(joints, replay.tracking(np.zeros(0)), tolerances)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -185,20 +186,29 @@ def _columns(path: Path, header: list[str], data: np.ndarray, *, sparse: bool) -
 BAG_SUFFIXES = (".mcap", ".db3")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 COMMANDS = "std_msgs/msg/Float64MultiArray"
+TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+TRAJECTORY_RATE = 1000.0
+"""Hz: a trajectory's setpoints are sampled this often between its points (linearly, as a
+joint trajectory controller interpolates them) before the log is resampled."""
 
 
-def read(path: Path, actuators: list[str]) -> Log:
+def read(path: Path, actuators: list[str], servos: Mapping[str, str] | None = None) -> Log:
     """A log: a ROS 2 bag (a folder, ``.mcap`` or ``.db3``) or else a CSV file."""
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
-        return read_bag(path, actuators)
+        return read_bag(path, actuators, servos or {})
     return read_csv(path)
 
 
-def read_bag(path: Path, actuators: list[str]) -> Log:
+def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None = None) -> Log:
     """A rosbag2 (MCAP or SQLite): ``sensor_msgs/JointState`` messages give each joint's
-    position and velocity at their header stamp (the bag's time where it is zero); one
-    ``std_msgs/Float64MultiArray`` topic (a ros2_control forward command controller's) gives
-    the commands, one value per actuator in the model's order. Messages are sorted by time."""
+    position and velocity at their header stamp (the bag's time where it is zero); the
+    commands come from one ``std_msgs/Float64MultiArray`` topic (a ros2_control forward
+    command controller's: one value per actuator in the model's order) or, where the bag has
+    none, from ``trajectory_msgs/JointTrajectory`` messages (a joint trajectory
+    controller's: each point's positions at its ``time_from_start`` after the message's
+    stamp, interpolated linearly, a later trajectory replacing the rest of an earlier one)
+    for the position servos ``servos`` names (joint -> actuator). Messages are sorted by
+    time."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -213,8 +223,11 @@ def read_bag(path: Path, actuators: list[str]) -> Log:
     try:
         states = [c for c in reader.connections if c.msgtype == JOINT_STATE]
         commands = [c for c in reader.connections if c.msgtype == COMMANDS]
+        trajectories = [c for c in reader.connections if c.msgtype == TRAJECTORY]
         if not states:
             raise InputError(f"bag has no {JOINT_STATE} topic", file=path)
+        if not commands and trajectories:
+            return _with_trajectories(path, reader, states, trajectories, servos or {})
         if len(commands) != 1:
             found = ", ".join(sorted(c.topic for c in commands)) or "none"
             raise InputError(
@@ -248,6 +261,66 @@ def read_bag(path: Path, actuators: list[str]) -> Log:
             rows.append(row)
     finally:
         reader.close()
+    data = np.full((len(rows), len(index)), np.nan)
+    for i, row in enumerate(rows):
+        for j, value in row.items():
+            data[i, j] = value
+    return _columns(path, list(index), data, sparse=True)
+
+
+def _with_trajectories(
+    path: Path, reader: Any, states: list, trajectories: list, servos: Mapping[str, str]
+) -> Log:
+    """:func:`read_bag`'s log where the commands are joint trajectories."""
+    index: dict[str, int] = {"t": 0}
+    rows: list[dict[int, float]] = []
+    plans: list[tuple[float, list[str], np.ndarray, np.ndarray]] = []
+    for conn, stamp, raw in reader.messages(connections=states + trajectories):
+        msg: Any = reader.deserialize(raw, conn.msgtype)
+        head = msg.header.stamp
+        t_ns = head.sec * 1_000_000_000 + head.nanosec or stamp
+        if conn.msgtype == JOINT_STATE:
+            row: dict[int, float] = {0: t_ns * 1e-9}
+            for i, name in enumerate(msg.name):
+                for kind, values in (("q", msg.position), ("v", msg.velocity)):
+                    if i < len(values):
+                        row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+            rows.append(row)
+            continue
+        unknown = [j for j in msg.joint_names if j not in servos]
+        if unknown:
+            raise InputError(
+                f"{conn.topic}: joint {untrusted.excerpt(unknown[0], 40)!r} has no position "
+                f"servo in the model; its position servos drive {_names(sorted(servos))}",
+                file=path,
+            )
+        offsets = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
+        if not offsets:
+            continue
+        positions = np.array([list(p.positions) for p in msg.points], dtype=float)
+        if positions.shape != (len(offsets), len(msg.joint_names)) or np.any(
+            np.diff(offsets) <= 0
+        ):
+            raise InputError(
+                f"{conn.topic}: a trajectory whose points do not each give every joint's "
+                "position at increasing times",
+                file=path,
+            )
+        plans.append((t_ns * 1e-9, list(msg.joint_names), np.asarray(offsets), positions))
+    plans.sort(key=lambda p: p[0])
+    for k, (start, names, times, positions) in enumerate(plans):
+        end = start + times[-1]
+        if k + 1 < len(plans):
+            end = min(end, plans[k + 1][0] - 1.0 / TRAJECTORY_RATE)
+        grid = np.arange(start + times[0], end + 1e-12, 1.0 / TRAJECTORY_RATE)
+        for t in grid:
+            rows.append({0: float(t)})
+        cols = [index.setdefault(f"u.{servos[n]}", len(index)) for n in names]
+        first = len(rows) - len(grid)
+        for c, j in zip(cols, range(len(names)), strict=True):
+            values = np.interp(grid - start, times, positions[:, j])
+            for i, value in enumerate(values):
+                rows[first + i][c] = float(value)
     data = np.full((len(rows), len(index)), np.nan)
     for i, row in enumerate(rows):
         for j, value in row.items():

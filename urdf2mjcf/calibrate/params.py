@@ -97,6 +97,19 @@ def actuator_names(m: Any) -> list[str]:
     ]
 
 
+def position_servos(m: Any) -> dict[str, str]:
+    """Joint name -> the name of the position servo that drives it: what a
+    ``JointTrajectory``'s positions command (:func:`.logs.read_bag`)."""
+    names = actuator_names(m)
+    out: dict[str, str] = {}
+    joint_kind = int(mujoco.mjtTrn.mjTRN_JOINT)
+    for a in range(m.nu):
+        if gain_field(m, a) == "kp" and int(m.actuator_trntype[a]) == joint_kind:
+            j = int(m.actuator_trnid[a, 0])
+            out.setdefault(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or "", names[a])
+    return out
+
+
 def gain_field(m: Any, a: int) -> str:
     """``kp`` for a position servo, ``kv`` for a velocity servo, else ``gain``."""
     if (
