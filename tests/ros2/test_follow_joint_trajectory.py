@@ -88,7 +88,18 @@ def _call(client, service: str, request_type: str, response_type: str, request, 
     return STORE.deserialize_cdr(replies[0].ok.payload.to_bytes(), response_type)
 
 
-def _goal(n: int, names, points, tolerance: float = 0.0, path: float = 0.0, late: int = 1):
+def _goal(
+    n: int, names, points, tolerance: float = 0.0, path: float = 0.0, late: int = 1,
+    path_v: float = 0.0, goal_v: float = 0.0,
+):  # fmt: skip
+    def tolerances(position: float, velocity: float):
+        return [
+            T["control_msgs/msg/JointTolerance"](
+                name=n_, position=position, velocity=velocity, acceleration=0.0
+            )
+            for n_ in (names if position or velocity else [])
+        ]
+
     goal = T[f"{FJT}_Goal"](
         trajectory=_trajectory(names, points),
         multi_dof_trajectory=T["trajectory_msgs/msg/MultiDOFJointTrajectory"](
@@ -98,27 +109,17 @@ def _goal(n: int, names, points, tolerance: float = 0.0, path: float = 0.0, late
             joint_names=[],
             points=[],
         ),
-        path_tolerance=[
-            T["control_msgs/msg/JointTolerance"](
-                name=n_, position=path, velocity=0.0, acceleration=0.0
-            )
-            for n_ in (names if path else [])
-        ],
+        path_tolerance=tolerances(path, path_v),
         component_path_tolerance=[],
-        goal_tolerance=[
-            T["control_msgs/msg/JointTolerance"](
-                name=n_, position=tolerance, velocity=0.0, acceleration=0.0
-            )
-            for n_ in (names if tolerance else [])
-        ],
+        goal_tolerance=tolerances(tolerance, goal_v),
         component_goal_tolerance=[],
         goal_time_tolerance=T["builtin_interfaces/msg/Duration"](sec=late, nanosec=0),
     )
     return T[f"{FJT}_SendGoal_Request"](goal_id=_uuid(n), goal=goal)
 
 
-def _send(client, n, names, points, tolerance=0.0, path=0.0, late=1) -> bool:
-    req = _goal(n, names, points, tolerance, path, late)
+def _send(client, n, names, points, tolerance=0.0, path=0.0, late=1, **rates) -> bool:
+    req = _goal(n, names, points, tolerance, path, late, **rates)
     res = _call(client, "send_goal", f"{FJT}_SendGoal_Request", f"{FJT}_SendGoal_Response", req)
     return bool(res.accepted)
 
@@ -243,3 +244,19 @@ def test_tolerances_violated_abort_with_control_msgs_error_codes(client):
     _wait_sim(client, 0.3)
     held = _positions(client, NAMES)
     np.testing.assert_allclose(held, here + 0.1, atol=0.05)  # stopped near where it was
+
+
+def test_velocity_tolerances_on_the_way_and_at_rest(client):
+    """A path velocity tolerance no servo meets (1e-6 rad/s off the trajectory's own
+    speed) aborts with PATH_TOLERANCE_VIOLATED; a goal velocity tolerance of 0.05 rad/s
+    succeeds once the joints have come to rest within the position tolerance."""
+    here = _positions(client, NAMES)
+    assert _send(client, 8, NAMES, [(1.0, (here + 0.2).tolist())], path_v=1e-6)
+    res = _result(client, 8)
+    assert res.status == ABORTED and res.result.error_code == -4  # PATH_TOLERANCE_VIOLATED
+    _wait_sim(client, 0.3)
+    here = _positions(client, NAMES)
+    assert _send(client, 9, NAMES, [(1.0, (here - 0.1).tolist())], tolerance=0.02, goal_v=0.05)
+    res = _result(client, 9)
+    assert res.status == SUCCEEDED and res.result.error_code == 0
+    np.testing.assert_allclose(_positions(client, NAMES), here - 0.1, atol=0.02)

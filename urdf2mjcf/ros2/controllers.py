@@ -126,6 +126,31 @@ class Trajectory:
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
         return h00 * p0 + h10 * v0 + h01 * p1 + h11 * v1
 
+    def rates(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Velocities and accelerations at simulated time ``t``: the derivatives of
+        :meth:`sample` (zero where it holds, before the start and after the end)."""
+        ts = self.times
+        n = self.positions.shape[1]
+        if t <= ts[0] or t >= ts[-1]:
+            return np.zeros(n), np.zeros(n)
+        i = int(np.searchsorted(ts, t, side="right")) - 1
+        h = ts[i + 1] - ts[i]
+        s = (t - ts[i]) / h
+        p0, p1 = self.positions[i], self.positions[i + 1]
+        if self.velocities is None:
+            return (p1 - p0) / h, np.zeros(n)
+        v0, v1 = self.velocities[i] * h, self.velocities[i + 1] * h
+        d00, d10, d01, d11 = (
+            6 * s**2 - 6 * s,
+            3 * s**2 - 4 * s + 1,
+            -6 * s**2 + 6 * s,
+            3 * s**2 - 2 * s,
+        )
+        a00, a10, a01, a11 = 12 * s - 6, 6 * s - 4, -12 * s + 6, 6 * s - 2
+        velocity = (d00 * p0 + d10 * v0 + d01 * p1 + d11 * v1) / h
+        acceleration = (a00 * p0 + a10 * v0 + a01 * p1 + a11 * v1) / h**2
+        return velocity, acceleration
+
     @property
     def end(self) -> float:
         return float(self.times[-1])

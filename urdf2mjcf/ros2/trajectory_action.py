@@ -7,8 +7,12 @@ rmw_zenoh carries an action as rcl_action lays it out: the services
 through the server's trajectory follower on the simulated clock (one goal at a time:
 a new one, a topic trajectory or a forward command on its joints ends it, aborted);
 it succeeds at the trajectory's end once its joints are within the goal tolerance,
-which it may take ``goal_time_tolerance`` longer to reach. A cancel holds the joints
-where they are.
+which it may take ``goal_time_tolerance`` longer to reach. Tolerances are control_msgs'
+``JointTolerance``: position (rad or m), velocity and acceleration, each the largest
+error allowed, on the way (``path_tolerance``: against the trajectory's own positions
+and their derivatives) and at the end (``goal_tolerance``: against the last point, at
+rest); 0 or -1 is not checked (the server has no defaults of its own). A cancel holds
+the joints where they are.
 
 Goal state lives in the simulation thread; get_result's reply waits there for the end.
 """
@@ -46,6 +50,7 @@ class Server(Protocol):
 
     def follows(self, name: str, traj: controllers.Trajectory) -> bool: ...
 
+
 log = logging.getLogger(__name__)
 
 ACTION = "control_msgs/action/FollowJointTrajectory"
@@ -79,7 +84,7 @@ class Goal:
     trajectory: controllers.Trajectory | None
     joints: tuple[str, ...]
     path_tolerance: np.ndarray
-    """(n,) per goal joint, 0: not checked."""
+    """(n, 3) per goal joint: position, velocity, acceleration; 0: not checked."""
     goal_tolerance: np.ndarray
     goal_time_tolerance: float
     status: int = EXECUTING
@@ -87,12 +92,24 @@ class Goal:
     waiting: list[Callable[[dict[str, Any]], None]] = field(default_factory=list)
 
 
+COMPONENTS = ("position", "velocity", "acceleration")
+
+
 def _tolerances(given: list[dict[str, Any]], joints: tuple[str, ...]) -> np.ndarray:
-    out = np.zeros(len(joints))
+    """(n, 3): each joint's position, velocity and acceleration tolerance (0: unchecked;
+    control_msgs' -1, "none", too)."""
+    out = np.zeros((len(joints), len(COMPONENTS)))
     for tol in given:
         if tol.get("name") in joints:
-            out[joints.index(tol["name"])] = max(0.0, float(tol.get("position", 0.0)))
+            for k, part in enumerate(COMPONENTS):
+                value = float(tol.get(part, 0.0))
+                out[joints.index(tol["name"]), k] = value if np.isfinite(value) and value > 0 else 0
     return out
+
+
+def _beyond(tolerance: np.ndarray, errors: np.ndarray) -> np.ndarray:
+    """Indices of the joints with an error beyond a checked tolerance; ``errors`` (n, 3)."""
+    return np.flatnonzero(np.any((tolerance > 0) & (np.abs(errors) > tolerance), axis=1))
 
 
 class TrajectoryAction:
@@ -278,16 +295,21 @@ class TrajectoryAction:
                     },
                 }
             )
-        path = goal.path_tolerance
-        if t <= traj.end and np.any((path > 0) & (np.abs(error) > path)):
-            bad = [goal.joints[i] for i in np.flatnonzero((path > 0) & (np.abs(error) > path))]
-            self._hold()
-            self._end(goal, ABORTED, PATH_TOLERANCE_VIOLATED, f"off the path: {', '.join(bad)}")
-            return
+        dofs = [m.jnt_dofadr[j] for j in joints]
+        acceleration = np.array([d.qacc[i] for i in dofs])
+        if t <= traj.end:
+            want_v, want_a = traj.rates(t)
+            errors = np.column_stack([error, want_v - velocity, want_a - acceleration])
+            off = _beyond(goal.path_tolerance, errors)
+            if off.size:
+                bad = ", ".join(goal.joints[i] for i in off)
+                self._hold()
+                self._end(goal, ABORTED, PATH_TOLERANCE_VIOLATED, f"off the path: {bad}")
+                return
         if t < traj.end:
             return
-        tol = goal.goal_tolerance
-        off = np.flatnonzero((tol > 0) & (np.abs(traj.positions[-1] - actual) > tol))
+        errors = np.column_stack([traj.positions[-1] - actual, velocity, acceleration])
+        off = _beyond(goal.goal_tolerance, errors)
         if off.size == 0:
             self._end(goal, SUCCEEDED, SUCCESSFUL, "")
         elif t > traj.end + goal.goal_time_tolerance:
