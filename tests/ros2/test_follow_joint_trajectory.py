@@ -74,11 +74,14 @@ def _uuid(n: int):
     return T["unique_identifier_msgs/msg/UUID"](uuid=np.full(16, n, dtype=np.uint8))
 
 
-def _call(client, service: str, request_type: str, response_type: str, request, timeout=20):
+def _call(
+    client, service: str, request_type: str, response_type: str, request, timeout=20,
+    action: str = ACTION,
+):  # fmt: skip
     att = struct.pack("<qqB", 7, time.time_ns(), 16) + bytes(16)
     replies = list(
         client.get(
-            _key(client, "SS", f"{ACTION}/_action/{service}"),
+            _key(client, "SS", f"{action}/_action/{service}"),
             payload=bytes(STORE.serialize_cdr(request, request_type)),
             attachment=att,
             timeout=timeout,

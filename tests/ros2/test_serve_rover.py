@@ -142,3 +142,43 @@ def test_the_rovers_arm_follows_its_trajectory_controller(client):
     )
     _wait_sim(client, 2.0)
     np.testing.assert_allclose(_positions(client, names), goal, atol=0.05)
+
+
+def test_the_rovers_arm_takes_follow_joint_trajectory_goals(client):
+    """``/rover/arm_controller/follow_joint_trajectory`` as MoveIt sends it: a goal
+    reaches its point and SUCCEEDS within its goal tolerance, as MuJoCo's joint states
+    say; with the emergency stop latched a goal is not followed and is ABORTED."""
+    from tests.ros2.test_follow_joint_trajectory import ABORTED, SUCCEEDED, _call, _goal
+    from tests.ros2.test_serve_e2e import _positions, _wait_sim
+
+    action = "/rover/arm_controller/follow_joint_trajectory"
+    fjt = "control_msgs/action/FollowJointTrajectory"
+
+    def send(n: int, points) -> bool:
+        req = _goal(n, names, points, tolerance=0.03, late=2)
+        res = _call(client, "send_goal", f"{fjt}_SendGoal_Request",
+                    f"{fjt}_SendGoal_Response", req, action=action)  # fmt: skip
+        return bool(res.accepted)
+
+    def result(n: int):
+        from tests.ros2.test_follow_joint_trajectory import T, _uuid
+
+        req = T[f"{fjt}_GetResult_Request"](goal_id=_uuid(n))
+        return _call(client, "get_result", f"{fjt}_GetResult_Request",
+                     f"{fjt}_GetResult_Response", req, action=action)  # fmt: skip
+
+    _estop(client, False)
+    names = ["ur_shoulder_pan_joint", "ur_elbow_joint"]
+    start = _positions(client, names)
+    goal = start + np.array([-0.25, 0.15])
+    assert send(41, [(1.0, goal.tolist())])
+    res = result(41)
+    assert res.status == SUCCEEDED and res.result.error_code == 0
+    np.testing.assert_allclose(_positions(client, names), goal, atol=0.03)
+    _estop(client, True)
+    assert send(42, [(1.0, start.tolist())])
+    res = result(42)
+    assert res.status == ABORTED
+    _wait_sim(client, 0.5)
+    np.testing.assert_allclose(_positions(client, names), goal, atol=0.03)  # held
+    _estop(client, False)

@@ -5,13 +5,16 @@ rate, through the wheels, kept for CMD_VEL_TIMEOUT), ``/<rover>/odom``
 emergency stop ``/<rover>/estop`` (std_msgs/Bool: true latches it, as the console's:
 the wheels brake and hold, the arm holds, and commands are ignored until a false
 releases it), and the arm's ``/<rover>/arm_controller/joint_trajectory``
-(trajectory_msgs/JointTrajectory, its joints named as the model names them).
+(trajectory_msgs/JointTrajectory, its joints named as the model names them) with its
+``/<rover>/arm_controller/follow_joint_trajectory`` action (as the robot's, see
+:mod:`.trajectory_action`; the latched stop aborts a goal).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 import mujoco
@@ -21,6 +24,7 @@ from ..runner.rover.sim import RoverSim
 from . import controllers, keyexpr
 from .server import Extension, Server, _time
 from .session import Node, Publisher
+from .trajectory_action import TrajectoryAction
 
 CMD_VEL_TIMEOUT = 0.5
 """Simulated seconds a Twist drives the wheels: a teleop that goes silent stops the
@@ -33,6 +37,8 @@ class _Driven:
         self.until = -math.inf
         self.estop = False
         self.trajectory: controllers.Trajectory | None = None
+        self.finished: controllers.Trajectory | None = None
+        """The last trajectory followed to its end, with no command since."""
 
 
 def _arm_group(m: mujoco.MjModel, name: str, acts: np.ndarray) -> controllers.Group:
@@ -58,6 +64,44 @@ def _arm_group(m: mujoco.MjModel, name: str, acts: np.ndarray) -> controllers.Gr
     )
 
 
+class _ArmFollower:
+    """One rover arm's trajectory controller as its FollowJointTrajectory action sees a
+    server (:class:`.trajectory_action.Server`): the arm's targets follow the goal, and
+    holding sets them where the joints are."""
+
+    def __init__(self, rovers: Rovers, server: Server, name: str) -> None:
+        self.rovers, self.server, self.rover = rovers, server, name
+
+    @property
+    def m(self) -> Any:
+        return self.server.m
+
+    @property
+    def d(self) -> Any:
+        return self.server.d
+
+    def submit(self, fn: Callable[[], Any], timeout: float = 30.0) -> Any:
+        return self.server.submit(fn, timeout)
+
+    def post(self, fn: Callable[[], None]) -> None:
+        self.server.post(fn)
+
+    def start_trajectory(self, name: str, traj: controllers.Trajectory) -> None:
+        c = self.rovers.driven[self.rover]
+        if not c.estop:  # latched: the goal is not followed, and aborts at its next tick
+            c.trajectory, c.finished = traj, None
+
+    def stop_trajectory(self, name: str) -> None:
+        c = self.rovers.driven[self.rover]
+        c.trajectory = c.finished = None
+        sim = self.rovers.sim
+        sim.arm_targets[self.rover][:] = sim.d.qpos[sim.rovers[self.rover].arm_qpos]
+
+    def follows(self, name: str, traj: controllers.Trajectory) -> bool:
+        c = self.rovers.driven[self.rover]
+        return c.trajectory is traj or c.finished is traj
+
+
 class Rovers(Extension):
     def __init__(self, sim: RoverSim) -> None:
         self.sim = sim
@@ -68,6 +112,10 @@ class Rovers(Extension):
         self.actuators = frozenset(acts)
         self.arms = {n: _arm_group(sim.m, n, r.arm) for n, r in sim.rovers.items() if len(r.arm)}
         sim.sim.control.append(self._control)
+
+    def actions(self, server: Server) -> list[TrajectoryAction]:
+        """``/<rover>/arm_controller/follow_joint_trajectory`` for each rover's arm."""
+        return [TrajectoryAction(_ArmFollower(self, server, n), g) for n, g in self.arms.items()]
 
     def open(self, node: Node, server: Server) -> None:
         self.server = server
@@ -120,6 +168,7 @@ class Rovers(Extension):
             current = self.sim.arm_targets[name].copy()
             try:
                 c.trajectory = controllers.trajectory(group, msg, self.sim.d.time, current)
+                c.finished = None
             except controllers.BadCommand as exc:
                 self.server.warn.drop(f"/{name}/arm_controller joint_trajectory", str(exc))
 
@@ -133,7 +182,7 @@ class Rovers(Extension):
         c = self.driven[name]
         if on and not c.estop:
             c.v = c.w = 0.0
-            c.trajectory = None
+            c.trajectory = c.finished = None
             targets = self.sim.arm_targets[name]
             targets[:] = self.sim.d.qpos[self.sim.rovers[name].arm_qpos]  # the arm holds
         c.estop = on
@@ -149,7 +198,7 @@ class Rovers(Extension):
                 targets = self.sim.arm_targets[name]
                 targets[cols] = np.clip(c.trajectory.sample(t), g.low[cols], g.high[cols])
                 if t > c.trajectory.end:
-                    c.trajectory = None
+                    c.trajectory, c.finished = None, c.trajectory
             if c.estop or t > c.until or (c.v == 0.0 and c.w == 0.0):
                 self.sim.brake(r)
             else:

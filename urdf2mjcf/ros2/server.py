@@ -123,6 +123,11 @@ class Extension:
     def reset(self) -> None:
         """After ``reset_world``."""
 
+    def actions(self, server: Server) -> list[TrajectoryAction]:
+        """The FollowJointTrajectory actions of its own trajectory controllers (opened,
+        ticked and reset with the server's)."""
+        return []
+
 
 class Server:
     def __init__(
@@ -169,6 +174,7 @@ class Server:
         self._trajectories: dict[str, controllers.Trajectory] = {}
         self._finished: dict[str, controllers.Trajectory] = {}  # followed to their end
         self.actions = [TrajectoryAction(self, g) for g in self.trajectory_groups.values()]
+        self.actions += [a for e in extensions for a in e.actions(self)]
         self._frames = self._split_frames()
         self._inbox: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self.paused = False

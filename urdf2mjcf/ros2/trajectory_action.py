@@ -37,8 +37,11 @@ class Server(Protocol):
     """What the action needs of the server that runs it (:class:`.server.Server`):
     declared here, so the server imports the action and not the other way round."""
 
-    m: Any
-    d: Any
+    @property
+    def m(self) -> Any: ...
+
+    @property
+    def d(self) -> Any: ...
 
     def submit(self, fn: Callable[[], Any], timeout: float = 30.0) -> Any: ...
 
