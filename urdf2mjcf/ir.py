@@ -525,6 +525,20 @@ class Camera:
     """Clip distances from the description, metres (reported; MuJoCo clips globally)."""
 
 
+@dataclass(frozen=True)
+class RosTopic:
+    """Where a described sensor publishes on ROS (its Gazebo tags), for a server to keep."""
+
+    kind: Literal["imu", "wrench", "scan"]
+    """The message: sensor_msgs/Imu, geometry_msgs/WrenchStamped, sensor_msgs/LaserScan."""
+    key: str
+    """What the sensor is read from: its site (imu, wrench) or its link (scan)."""
+    topic: str
+    """The fully qualified topic name (``/ns/name``)."""
+    frame_id: str | None = None
+    """The messages' header frame the description names; None: the site's or link's."""
+
+
 BODY_SENSORS = frozenset({"force", "torque", "rangefinder", "touch"})
 """Sensors whose reading depends on the body their site is on: force and torque
 measure the body's subtree, rangefinders skip the body's geoms, touch sensors
@@ -630,6 +644,9 @@ class Model:
     """Cameras from the description's camera sensors."""
     sensors: tuple[Sensor, ...] = ()
     """MJCF sensors, in the order emit writes them."""
+    ros_topics: tuple[RosTopic, ...] = ()
+    """Topics the description names for its sensors (emit writes them as ``<custom>``
+    texts ``ros2:<kind>:<key>``)."""
     notes: tuple[Note, ...] = ()
     """The conversion report so far, in the order the passes added them."""
 

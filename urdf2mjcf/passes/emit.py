@@ -241,16 +241,13 @@ def _fuse_all(
         home = bodies[owner[up]]  # the body it joins (a moving link is its own owner)
         if link not in fused:
             if up in fused:  # a moving child of a fused link: placed in the owner's frame
-                body.pos, body.quat = split_transform(
-                    to_owner[up] @ transform(body.pos, body.quat)
-                )
+                body.pos, body.quat = split_transform(to_owner[up] @ transform(body.pos, body.quat))
             home.children.append(body)
             continue
         t = to_owner[link]
         first, last = span[link]
         named = any(
-            owner[k] == owner[link] and first <= span[k][0] < last
-            for k in holders.get(link, ())
+            owner[k] == owner[link] and first <= span[k][0] < last for k in holders.get(link, ())
         )
         if not named:
             pos, quat = (body.pos, body.quat) if up not in fused else split_transform(t)
@@ -507,6 +504,24 @@ def _sensor_section(mj: etree._Element, model: Model) -> None:
         )
 
 
+ROS_TOPIC_TEXT = "ros2:{kind}:{key}"
+"""A ``<custom><text>`` name: its ``data`` is the topic, then the frame (if named)."""
+
+
+def _custom_section(mj: etree._Element, model: Model) -> None:
+    """The description's ROS topics for its sensors, where a server reads them."""
+    if not model.ros_topics:
+        return
+    section = etree.SubElement(mj, "custom")
+    for t in model.ros_topics:
+        data = t.topic if t.frame_id is None else f"{t.topic} {t.frame_id}"
+        set_attrs(
+            etree.SubElement(section, "text"),
+            name=ROS_TOPIC_TEXT.format(kind=t.kind, key=t.key),
+            data=data,
+        )
+
+
 def _scalar_qpos_index(entries: list) -> list[tuple[int, str]]:
     """(qpos address, joint name) of the one-number joints, in qpos order."""
     out, adr = [], 0
@@ -672,6 +687,7 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
 
     _actuator_section(mj, default, model)
     _sensor_section(mj, model)
+    _custom_section(mj, model)
 
     qpos = _home_qpos(entries, model)
     if qpos:

@@ -64,6 +64,7 @@ SECTIONS = (
     "tendon",
     "actuator",
     "sensor",
+    "custom",
     "keyframe",
 )
 """Top-level MJCF sections in the order emit (and Menagerie) writes them."""
@@ -71,7 +72,7 @@ SECTIONS = (
 MERGED = ("compiler", "option", "size", "visual", "statistic")
 """Singleton sections: attributes merged, child elements merged by tag."""
 
-APPENDED = ("asset", "contact", "equality", "tendon", "actuator", "sensor")
+APPENDED = ("asset", "contact", "equality", "tendon", "actuator", "sensor", "custom")
 """Sections whose children are appended in document order."""
 
 BODY_LEVEL = ("body", "frame", "geom", "site", "camera", "light")

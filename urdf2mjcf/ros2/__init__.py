@@ -11,7 +11,8 @@ extra). See docs/ros2.md. The modules:
   :mod:`.world` (a model file or a bundle, with its rovers), :mod:`.controllers` and
   :mod:`.controller_file` (ros2_control's controllers, from the description or a
   user's YAML), :mod:`.trajectory_action` (FollowJointTrajectory), :mod:`.sensors`,
-  :mod:`.scans` and :mod:`.cameras` (IMU, wrench, LaserScan, images), :mod:`.rovers`
+  :mod:`.scans` and :mod:`.cameras` (IMU, wrench, LaserScan, images) on the topics the
+  description named (:mod:`.described`), :mod:`.rovers`
   (each MIRA3D rover under its namespace), :mod:`.live` (a run published while it runs);
 * the command line: :mod:`.command` (``urdf2mjcf serve``) and :mod:`.options` (the
   transport options, declared once).

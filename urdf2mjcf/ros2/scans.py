@@ -1,4 +1,6 @@
-"""The model's planar lidars as sensor_msgs/LaserScan on ``/<link>/scan``.
+"""The model's planar lidars as sensor_msgs/LaserScan, on the topic and frame the
+description's Gazebo tags name (:mod:`.described`), else on ``/<link>/scan`` in the
+link's frame.
 
 The conversion makes a Gazebo ray sensor one MuJoCo rangefinder per ray, each on a
 site ``<link>_ray_NNN`` of the sensor's link, looking along its +z: rays whose
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from . import described
 from .server import Extension, Server, _time
 from .session import Node, Publisher
 
@@ -68,11 +71,17 @@ def scans(m: mujoco.MjModel) -> list[Scan]:
 class Scans(Extension):
     def __init__(self, m: mujoco.MjModel) -> None:
         self.scans = scans(m)
+        named = described.topics(m)
+        self.named = {
+            s.link: named.get(("scan", s.link), (f"/{s.link}/scan", None)) for s in self.scans
+        }
+        """link -> (topic, described frame or None)"""
 
     def open(self, node: Node, server: Server) -> None:
         self.d = server.d
         self._pubs: list[tuple[Scan, Publisher]] = [
-            (s, node.publisher(f"/{s.link}/scan", "sensor_msgs/msg/LaserScan")) for s in self.scans
+            (s, node.publisher(self.named[s.link][0], "sensor_msgs/msg/LaserScan"))
+            for s in self.scans
         ]
 
     def publish(self) -> None:
@@ -82,7 +91,7 @@ class Scans(Extension):
             ranges = np.where(r < 0, np.inf, r)
             pub.publish(
                 {
-                    "header": {"stamp": stamp, "frame_id": s.link},
+                    "header": {"stamp": stamp, "frame_id": self.named[s.link][1] or s.link},
                     "angle_min": s.angle_min,
                     "angle_max": s.angle_min + s.angle_increment * (len(s.adr) - 1),
                     "angle_increment": s.angle_increment,

@@ -1,11 +1,11 @@
-"""The model's IMUs and force-torque sensors on ROS 2 topics named after their sites.
+"""The model's IMUs and force-torque sensors on ROS 2 topics.
 
 An IMU is a site with an accelerometer and a gyro (and a framequat, its orientation in
-the world) -> ``/<site>/imu`` (sensor_msgs/Imu, frame the site: the URDF sensor's
-link, as the conversion names it); a force and a torque sensor on one site ->
-``/<site>/wrench`` (geometry_msgs/WrenchStamped, in the site's frame, as MuJoCo
-measures them). The conversion keeps no Gazebo topic name, so the topics are named
-after the sites, not the description's ``<topic>``.
+the world) -> sensor_msgs/Imu; a force and a torque sensor on one site ->
+geometry_msgs/WrenchStamped (in the site's frame, as MuJoCo measures them). Each is on
+the topic and frame the description's Gazebo tags name (:mod:`.described`), else on
+``/<site>/imu`` or ``/<site>/wrench`` with the site as its frame (the URDF sensor's
+link, as the conversion names it).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 
-from . import keyexpr
+from . import described, keyexpr
 from .server import Extension, Server, _time
 from .session import Node, Publisher
 
@@ -26,6 +26,8 @@ class _Site:
     name: str
     adr: dict[int, int] = field(default_factory=dict)
     """sensor type -> sensordata address"""
+    frame: str = ""
+    """The messages' header frame: the described one, else the site."""
 
 
 def _sites(m: mujoco.MjModel) -> dict[int, _Site]:
@@ -69,16 +71,24 @@ class Sensors(Extension):
         self.imus = [s for s in sites.values() if A in s.adr and G in s.adr]
         self.wrenches = [s for s in sites.values() if F in s.adr and T in s.adr]
         self._keys = (A, G, Q, F, T)
+        named = described.topics(m)
+        self.topics: dict[str, str] = {}
+        """site -> topic, per kind prefix (``imu:<site>``, ``wrench:<site>``)"""
+        for kind, group in (("imu", self.imus), ("wrench", self.wrenches)):
+            for s in group:
+                topic, frame = named.get((kind, s.name), (f"/{s.name}/{kind}", None))
+                self.topics[f"{kind}:{s.name}"] = topic
+                s.frame = frame or s.name
 
     def open(self, node: Node, server: Server) -> None:
         self.d = server.d
+        imu, wrench = "sensor_msgs/msg/Imu", "geometry_msgs/msg/WrenchStamped"
         self._imu: list[tuple[_Site, Publisher]] = [
-            (s, node.publisher(f"/{s.name}/imu", "sensor_msgs/msg/Imu", keyexpr.DEFAULT))
+            (s, node.publisher(self.topics[f"imu:{s.name}"], imu, keyexpr.DEFAULT))
             for s in self.imus
         ]
         self._ft: list[tuple[_Site, Publisher]] = [
-            (s, node.publisher(f"/{s.name}/wrench", "geometry_msgs/msg/WrenchStamped"))
-            for s in self.wrenches
+            (s, node.publisher(self.topics[f"wrench:{s.name}"], wrench)) for s in self.wrenches
         ]
 
     def publish(self) -> None:
@@ -91,7 +101,7 @@ class Sensors(Extension):
 
         for s, pub in self._imu:
             msg = {
-                "header": {"stamp": stamp, "frame_id": s.name},
+                "header": {"stamp": stamp, "frame_id": s.frame},
                 "angular_velocity": vec(s.adr[G]),
                 "angular_velocity_covariance": [0.0] * 9,
                 "linear_acceleration": vec(s.adr[A]),
@@ -113,7 +123,7 @@ class Sensors(Extension):
         for s, pub in self._ft:
             pub.publish(
                 {
-                    "header": {"stamp": stamp, "frame_id": s.name},
+                    "header": {"stamp": stamp, "frame_id": s.frame},
                     "wrench": {"force": vec(s.adr[F]), "torque": vec(s.adr[T])},
                 }
             )

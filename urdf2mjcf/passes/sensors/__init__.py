@@ -49,10 +49,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
-from ...ir import Camera, Geom, Joint, Model, Note, Quat, Sensor, Site, Vec3
+from ...ir import Camera, Geom, Joint, Model, Note, Quat, RosTopic, Sensor, Site, Vec3
 from ...transforms import (
     IDENTITY_QUAT,
     canonical_quat,
@@ -101,6 +102,7 @@ class _Builder:
         self.sites: list[Site] = []
         self.cameras: list[Camera] = []
         self.sensors: list[Sensor] = []
+        self.topics: list[RosTopic] = []
         self.notes: list[Note] = []
         self._sites = {s.name: s for s in model.sites}
         self._sensor_names = {s.name for s in model.sensors}
@@ -109,9 +111,7 @@ class _Builder:
 
     # -- names -------------------------------------------------------------
 
-    def _unique(
-        self, name: str, taken: Callable[[str], bool], element: str, what: str
-    ) -> str:
+    def _unique(self, name: str, taken: Callable[[str], bool], element: str, what: str) -> str:
         final, k = name, 2
         while taken(final):
             final, k = f"{name}_{k}", k + 1
@@ -307,7 +307,15 @@ class _Builder:
             self.sensor(Sensor(f"{frame}_{suffix}", kind, site=site, noise=noise), spec.element)
         quat = Sensor(f"{frame}_orientation", "framequat", objtype="site", objname=site)
         self.sensor(quat, spec.element)
+        self.topic("imu", site, spec)
         return True
+
+    def topic(self, kind: Literal["imu", "wrench", "scan"], key: str, spec: gz.SensorSpec) -> None:
+        """The ROS topic the description names for this sensor, kept for a server (the
+        first sensor on a key keeps it)."""
+        if spec.topic is None or any(t.kind == kind and t.key == key for t in self.topics):
+            return
+        self.topics.append(RosTopic(kind, key, spec.topic, spec.frame_id))
 
     def _force_torque(self, spec: gz.SensorSpec, frame: str) -> bool:
         ft = spec.force_torque or gz.ForceTorqueSpec()
@@ -334,6 +342,7 @@ class _Builder:
         self.sensor(
             Sensor(f"{frame}_torque", "torque", site=site, noise=ft.torque_noise), spec.element
         )
+        self.topic("wrench", site, spec)
         message = (
             f"force/torque at '{site}': MuJoCo reports the wrench the parent applies on "
             f"'{frame}' and everything below it, in the site's axes"
@@ -364,6 +373,7 @@ class _Builder:
                 )
                 self.sensor(ray, spec.element)
                 k += 1
+        self.topic("scan", frame, spec)
         last = f"{frame}_ray_{count - 1:0{width}d}"
         message = (
             f"{spec.type} -> {count} rangefinders {frame}_ray_{0:0{width}d}..{last} "
@@ -512,5 +522,6 @@ def run(model: Model, cfg: SensorConfig) -> Model:
         sites=model.sites + tuple(builder.sites),
         cameras=model.cameras + tuple(builder.cameras),
         sensors=model.sensors + tuple(builder.sensors),
+        ros_topics=model.ros_topics + tuple(builder.topics),
         notes=model.notes + tuple(builder.notes),
     )

@@ -18,6 +18,7 @@ results in MuJoCo frames.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -147,6 +148,10 @@ class SensorSpec:
     lidar: LidarSpec | None = None
     force_torque: ForceTorqueSpec | None = None
     contact: ContactSpec | None = None
+    topic: str | None = None
+    """The ROS topic its tags name, fully qualified (:func:`ros_topic`); None: none."""
+    frame_id: str | None = None
+    """The messages' frame its tags name (``frame_name``, ``frameName``, ``gz_frame_id``)."""
 
     @property
     def element(self) -> str:
@@ -362,6 +367,59 @@ def _force_torque(r: _Reader, sensor: etree._Element) -> ForceTorqueSpec:
     )
 
 
+_ROS_NAME = re.compile(r"[A-Za-z_~/][A-Za-z0-9_/~]*")
+FRAME_TAGS = ("frame_name", "frameName", *HEADER_FRAME_TAGS)
+"""Tags naming the frame of a sensor's messages (ROS 2 plugins, ROS 1 plugins, gz)."""
+
+
+def _qualified(namespace: str, name: str) -> str | None:
+    """``/ns/name`` (``name`` absolute: itself); None for what is not a ROS name."""
+    namespace, name = namespace.strip(), name.strip()
+    if (
+        not name
+        or not _ROS_NAME.fullmatch(name)
+        or (namespace and not _ROS_NAME.fullmatch(namespace))
+    ):
+        return None
+    full = name if name.startswith("/") else f"/{namespace.strip('/')}/{name}"
+    return re.sub(r"/+", "/", full).rstrip("/") or None
+
+
+def ros_topic(sensor: etree._Element) -> str | None:
+    """The topic a Gazebo sensor publishes on, as its tags name it: a ROS 2 gazebo_ros
+    plugin's ``<ros><namespace>`` with its ``~/out`` remapped (else ``<plugin
+    name>/out``), a ROS 1 plugin's ``<robotNamespace>``/``<topicName>``, or gz's
+    ``<topic>``; None where none is named."""
+    for plugin in _plugins(sensor):
+        ros = plugin.find("ros")
+        if ros is not None:
+            namespace = (ros.findtext("namespace") or "").strip()
+            out = f"{(plugin.get('name') or 'sensor').strip()}/out"
+            for remap in ros.findall("remapping"):
+                left, sep, right = (remap.text or "").partition(":=")
+                if sep and left.strip() in ("~/out", "out"):
+                    out = right.strip()
+            found = _qualified(namespace, out.removeprefix("~/"))
+            if found:
+                return found
+        topic = _find_any(plugin, ("topicName", "topic_name"))
+        if topic:
+            found = _qualified(_find_any(plugin, ("robotNamespace",)) or "", topic)
+            if found:
+                return found
+    topic = (sensor.findtext("topic") or "").strip()
+    return _qualified("", topic) if topic else None
+
+
+def ros_frame(sensor: etree._Element) -> str | None:
+    for el in (*_plugins(sensor), sensor):
+        for tag in FRAME_TAGS:
+            text = (el.findtext(tag) or "").strip()
+            if text and _ROS_NAME.fullmatch(text.lstrip("/")):
+                return text.lstrip("/")
+    return None
+
+
 def _sensor(sensor: etree._Element, reference: str | None, notes: list[Note]) -> SensorSpec | None:
     gz_type = (sensor.get("type") or "").strip()
     name = sensor.get("name") or f"{reference or 'robot'}_{gz_type or 'sensor'}"
@@ -375,6 +433,7 @@ def _sensor(sensor: etree._Element, reference: str | None, notes: list[Note]) ->
         return None
     pos, quat = r.pose(sensor)
     spec = SensorSpec(kind, name, "gazebo", gz_type, reference, pos, quat)
+    spec = replace(spec, topic=ros_topic(sensor), frame_id=ros_frame(sensor))
     if kind == "camera":
         spec = replace(spec, camera=_camera(r, sensor, gz_type))
     elif kind == "imu":
@@ -408,6 +467,9 @@ def _model_plugin(plugin: etree._Element, notes: list[Note]) -> SensorSpec | Non
         spec = SensorSpec("imu", name, "gazebo_plugin", filename, body, imu=imu)
     else:
         return None
+    topic = _find_any(plugin, ("topicName",))
+    if topic:
+        spec = replace(spec, topic=_qualified(_find_any(plugin, ("robotNamespace",)) or "", topic))
     notes.extend(r.notes)
     return spec
 
