@@ -53,7 +53,7 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
 @click.option(
     "--speed",
     type=FiniteFloat(0.0, SPEED_MAX, low_open=True),
-    default=0.5,
+    default=DRIVES["straight"].keys["speed"].default,
     show_default=True,
     help=f"m/s, above 0 and at most {SPEED_MAX:g}",
 )
@@ -68,7 +68,7 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
 @click.option(
     "--rate",
     type=FiniteFloat(0.0, RATE_MAX, low_open=True),
-    default=30.0,
+    default=DRIVES["turn"].keys["rate_deg"].default,
     show_default=True,
     help=f"deg/s while turning, above 0 and at most {RATE_MAX:g}",
 )

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -35,6 +35,9 @@ TURN_MAX = 3_600.0
 """deg: the largest turn in place (ten turns)."""
 RATE_MAX = 360.0
 """deg/s: the fastest turn asked for."""
+TURN_RATE_DEG = 30.0
+"""deg/s: a turn's top rate unless it says (``Turn.rate``, the plan's ``rate_deg`` and
+``rover-drive --rate`` all take it from here)."""
 HOLD_MAX = 100.0
 """s: the longest hold (under ``sim.TASK_TIMEOUT``, 120 s, so a hold always ends)."""
 AMPLITUDE_MAX = 3.0
@@ -99,7 +102,8 @@ class Turn(Task):
     or by the wheels, then stop."""
 
     angle: float
-    rate: float = 0.5
+    rate: float = math.radians(TURN_RATE_DEG)
+    """rad/s."""
     accel: float = 1.0
     imu: bool = True
     tolerance: float = math.radians(0.3)
@@ -168,6 +172,13 @@ class Key:
     meaning: str
     default: Any = None
     """None: the key is required."""
+
+
+def default_of(task: type, field: str) -> Any:
+    """A task dataclass's default for ``field``: the one declaration the plan's keys and
+    the command line's options take theirs from."""
+    (found,) = [f for f in fields(task) if f.name == field]
+    return found.default
 
 
 def _number(
@@ -249,9 +260,20 @@ class StraightKind(DriveKind):
         "distance": _number(
             -DISTANCE_MAX, DISTANCE_MAX, "m", "drive straight this far (negative: backwards)"
         ),
-        "speed": _number(0.0, SPEED_MAX, "m/s", "top speed", 0.5, low_open=True),
-        "accel": _number(0.0, ACCEL_MAX, "m/s²", "speed-up and braking", 0.5, low_open=True),
-        "hold_heading": _flag("hold the start heading with the IMU", True),
+        "speed": _number(
+            0.0, SPEED_MAX, "m/s", "top speed", default_of(Straight, "speed"), low_open=True
+        ),
+        "accel": _number(
+            0.0,
+            ACCEL_MAX,
+            "m/s²",
+            "speed-up and braking",
+            default_of(Straight, "accel"),
+            low_open=True,
+        ),
+        "hold_heading": _flag(
+            "hold the start heading with the IMU", default_of(Straight, "hold_heading")
+        ),
     }
     required = ("distance",)
 
@@ -272,8 +294,10 @@ class TurnKind(DriveKind):
     kind = "turn"
     keys = {
         "angle_deg": _number(-TURN_MAX, TURN_MAX, "deg", "turn in place (positive: left)"),
-        "rate_deg": _number(0.0, RATE_MAX, "deg/s", "top turn rate", 30.0, low_open=True),
-        "imu": _flag("measure the turn with the IMU (false: with the wheels)", True),
+        "rate_deg": _number(0.0, RATE_MAX, "deg/s", "top turn rate", TURN_RATE_DEG, low_open=True),
+        "imu": _flag(
+            "measure the turn with the IMU (false: with the wheels)", default_of(Turn, "imu")
+        ),
     }
     required = ("angle_deg",)
 
@@ -291,7 +315,11 @@ class TurnKind(DriveKind):
 @register
 class HoldKind(DriveKind):
     kind = "hold"
-    keys = {"duration": _number(0.0, HOLD_MAX, "s", "stand still, wheels held", 1.0)}
+    keys = {
+        "duration": _number(
+            0.0, HOLD_MAX, "s", "stand still, wheels held", default_of(Hold, "duration")
+        )
+    }
 
     def least_seconds(self, spec: Mapping) -> float:
         return float(self.value(spec, "duration"))
@@ -306,12 +334,24 @@ class ArmWaveKind(TaskKind):
     arm = True
     keys = {
         "joint": Key(
-            count(JOINTS_MAX), "0 .. the rover's arm joints - 1", "arm joint (roles order)", 0
+            count(JOINTS_MAX),
+            "0 .. the rover's arm joints - 1",
+            "arm joint (roles order)",
+            default_of(ArmWave, "joint"),
         ),
         "amplitude": _number(
-            -AMPLITUDE_MAX, AMPLITUDE_MAX, "rad", "swing about the home target", 0.4
+            -AMPLITUDE_MAX,
+            AMPLITUDE_MAX,
+            "rad",
+            "swing about the home target",
+            default_of(ArmWave, "amplitude"),
         ),
-        "period": _number(*PERIOD_RANGE, "s", "one swing, eased in over the first", 6.0),
+        "period": _number(
+            *PERIOD_RANGE,
+            "s",
+            "one swing, eased in over the first",
+            default_of(ArmWave, "period"),
+        ),
     }
 
     def check(self, spec: Mapping, at: str, rover: Rover, w: Waypoints) -> None:
