@@ -529,12 +529,14 @@ class Camera:
 class RosTopic:
     """Where a described sensor publishes on ROS (its Gazebo tags), for a server to keep."""
 
-    kind: Literal["imu", "wrench", "scan"]
-    """The message: sensor_msgs/Imu, geometry_msgs/WrenchStamped, sensor_msgs/LaserScan."""
+    kind: Literal["imu", "wrench", "scan", "camera"]
+    """The message: sensor_msgs/Imu, geometry_msgs/WrenchStamped, sensor_msgs/LaserScan,
+    sensor_msgs/Image (its CameraInfo beside it, ``.../camera_info``)."""
     key: str
-    """What the sensor is read from: its site (imu, wrench) or its link (scan)."""
+    """What the sensor is read from: its site (imu, wrench), its link (scan), the
+    camera's name (camera)."""
     topic: str
-    """The fully qualified topic name (``/ns/name``)."""
+    """The fully qualified topic name (``/ns/name``; a camera's: its image topic)."""
     frame_id: str | None = None
     """The messages' header frame the description names; None: the site's or link's."""
 

@@ -13,7 +13,7 @@ import pytest
 from lxml import etree
 
 from urdf2mjcf import api
-from urdf2mjcf.passes.sensors.gazebo import ros_frame, ros_topic
+from urdf2mjcf.passes.sensors.gazebo import ros_camera_topic, ros_frame, ros_topic
 from urdf2mjcf.ros2 import described
 from urdf2mjcf.ros2.scans import Scans
 from urdf2mjcf.ros2.sensors import Sensors
@@ -66,6 +66,56 @@ def test_the_topic_and_frame_as_ros_reads_the_tags(xml, topic, frame):
     sensor = etree.fromstring(xml)
     assert ros_topic(sensor) == topic
     assert ros_frame(sensor) == frame
+
+
+@pytest.mark.parametrize(
+    ("xml", "topic"),
+    [
+        (  # ROS 1, as TALOS's and TIAGo's descriptions write it
+            '<sensor type="depth" name="rgbd"><plugin filename="libgazebo_ros_openni_kinect.so">'
+            "<cameraName>rgbd</cameraName><imageTopicName>rgb/image_raw</imageTopicName>"
+            "</plugin></sensor>",
+            "/rgbd/rgb/image_raw",
+        ),
+        (  # ROS 2 gazebo_ros_camera: namespace, camera_name, ~/image_raw
+            '<sensor type="camera" name="front"><plugin filename="libgazebo_ros_camera.so">'
+            "<ros><namespace>/r</namespace></ros><camera_name>mast</camera_name></plugin></sensor>",
+            "/r/mast/image_raw",
+        ),
+        (  # no <ros>, only a frame: nothing named (sim_arm's camera)
+            '<sensor type="depth" name="mast_camera"><plugin filename="libgazebo_ros_camera.so">'
+            "<frame_name>camera_optical_frame</frame_name></plugin></sensor>",
+            None,
+        ),
+    ],
+    ids=["ros1", "ros2", "frame-only"],
+)
+def test_a_cameras_image_topic_as_ros_reads_the_tags(xml, topic):
+    assert ros_camera_topic(etree.fromstring(xml)) == topic
+    if topic:
+        assert described.camera_info_topic(topic) == topic.rsplit("/", 1)[0] + "/camera_info"
+
+
+def test_talos_cameras_keep_their_topics(tmp_path):
+    """example-robot-data's TALOS names its head camera's ir and rgb image topics with a
+    ROS 1 openni plugin: both cameras are served there, in the optical frame it names."""
+    from tests.corpus import example_robot_data_share
+    from urdf2mjcf.ros2.cameras import Cameras
+
+    share = example_robot_data_share()
+    out = tmp_path / "talos" / "robot.xml"
+    api.convert(
+        share / "example-robot-data/robots/talos_data/robots/talos_reduced.urdf",
+        out,
+        package_paths=[share],
+        use_environment=False,
+        scene=False,
+        cache_dir=tmp_path / "cache",
+    )
+    m = mujoco.MjModel.from_xml_path(str(out))
+    topics = Cameras(m, 10.0).topics
+    assert topics["rgbd_optical_frame"] == ("/rgbd/ir/image_raw", "rgbd_optical_frame")
+    assert topics["rgbd_optical_frame_2"] == ("/rgbd/rgb/image_raw", "rgbd_optical_frame")
 
 
 def _convert(tmp_path: Path, *args: str) -> mujoco.MjModel:

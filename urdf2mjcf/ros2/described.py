@@ -10,9 +10,16 @@ import re
 
 import mujoco
 
-_TEXT = re.compile(r"ros2:(?P<kind>imu|wrench|scan):(?P<key>.+)")
+_TEXT = re.compile(r"ros2:(?P<kind>imu|wrench|scan|camera):(?P<key>.+)")
 _NAME = re.compile(r"/[A-Za-z_][A-Za-z0-9_/]*")
 _FRAME = re.compile(r"[A-Za-z_][A-Za-z0-9_/.\-]*")
+
+
+def camera_info_topic(image: str) -> str:
+    """A camera's CameraInfo topic beside its image topic (``/ns/cam/image_raw`` ->
+    ``/ns/cam/camera_info``), as image_transport pairs them."""
+    parent = image.rsplit("/", 1)[0]
+    return f"{parent}/camera_info"
 
 
 def topics(m: mujoco.MjModel) -> dict[tuple[str, str], tuple[str, str | None]]:

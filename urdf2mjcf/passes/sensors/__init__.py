@@ -261,6 +261,7 @@ class _Builder:
             far=cam.far,
         )
         name = self.camera(camera, spec.element)
+        self.topic("camera", name, spec)
         clip = ""
         if cam.near is not None or cam.far is not None:
             clip = (
@@ -310,7 +311,9 @@ class _Builder:
         self.topic("imu", site, spec)
         return True
 
-    def topic(self, kind: Literal["imu", "wrench", "scan"], key: str, spec: gz.SensorSpec) -> None:
+    def topic(
+        self, kind: Literal["imu", "wrench", "scan", "camera"], key: str, spec: gz.SensorSpec
+    ) -> None:
         """The ROS topic the description names for this sensor, kept for a server (the
         first sensor on a key keeps it)."""
         if spec.topic is None or any(t.kind == kind and t.key == key for t in self.topics):

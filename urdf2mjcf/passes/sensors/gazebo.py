@@ -411,6 +411,37 @@ def ros_topic(sensor: etree._Element) -> str | None:
     return _qualified("", topic) if topic else None
 
 
+def ros_camera_topic(sensor: etree._Element) -> str | None:
+    """A Gazebo camera's image topic as its tags name it: a ROS 2 gazebo_ros_camera's
+    ``<ros><namespace>`` with ``<camera_name>`` (default the sensor's name) and its
+    ``~/image_raw`` (remapped or not), a ROS 1 plugin's ``<robotNamespace>``,
+    ``<cameraName>`` and ``<imageTopicName>``, or gz's ``<topic>``; None where none is
+    named (the camera_info topic is its sibling, ``.../camera_info``)."""
+    name = (sensor.get("name") or "camera").strip()
+    for plugin in _plugins(sensor):
+        ros = plugin.find("ros")
+        if ros is not None:
+            namespace = (ros.findtext("namespace") or "").strip()
+            camera = (plugin.findtext("camera_name") or name).strip()
+            image = f"{camera}/image_raw"
+            for remap in ros.findall("remapping"):
+                left, sep, right = (remap.text or "").partition(":=")
+                if sep and left.strip() in ("~/image_raw", "image_raw"):
+                    image = right.strip()
+            found = _qualified(namespace, image.removeprefix("~/"))
+            if found:
+                return found
+        topic = _find_any(plugin, ("imageTopicName",))
+        if topic:
+            camera = _find_any(plugin, ("cameraName",)) or ""
+            joined = topic if topic.startswith("/") or not camera else f"{camera}/{topic}"
+            found = _qualified(_find_any(plugin, ("robotNamespace",)) or "", joined)
+            if found:
+                return found
+    topic = (sensor.findtext("topic") or "").strip()
+    return _qualified("", topic) if topic else None
+
+
 def ros_frame(sensor: etree._Element) -> str | None:
     for el in (*_plugins(sensor), sensor):
         for tag in FRAME_TAGS:
@@ -433,7 +464,8 @@ def _sensor(sensor: etree._Element, reference: str | None, notes: list[Note]) ->
         return None
     pos, quat = r.pose(sensor)
     spec = SensorSpec(kind, name, "gazebo", gz_type, reference, pos, quat)
-    spec = replace(spec, topic=ros_topic(sensor), frame_id=ros_frame(sensor))
+    topic = ros_camera_topic(sensor) if kind == "camera" else ros_topic(sensor)
+    spec = replace(spec, topic=topic, frame_id=ros_frame(sensor))
     if kind == "camera":
         spec = replace(spec, camera=_camera(r, sensor, gz_type))
     elif kind == "imu":
