@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -385,30 +386,43 @@ def _qualified(namespace: str, name: str) -> str | None:
     return re.sub(r"/+", "/", full).rstrip("/") or None
 
 
+def _named_topic(
+    sensor: etree._Element, ros2: Callable[[etree._Element], str], output: str, ros1: Callable
+) -> str | None:
+    """The first topic a sensor's tags name: a ROS 2 gazebo_ros plugin's ``<ros>``
+    namespace with its ``~/<output>`` (remapped, else ``ros2(plugin)``), a ROS 1 plugin's
+    ``<robotNamespace>`` with ``ros1(plugin)``, or gz's ``<topic>``."""
+    for plugin in _plugins(sensor):
+        ros = plugin.find("ros")
+        if ros is not None:
+            name = ros2(plugin)
+            for remap in ros.findall("remapping"):
+                left, sep, right = (remap.text or "").partition(":=")
+                if sep and left.strip() in (f"~/{output}", output):
+                    name = right.strip()
+            found = _qualified((ros.findtext("namespace") or ""), name.removeprefix("~/"))
+            if found:
+                return found
+        relative = ros1(plugin)
+        if relative:
+            found = _qualified(_find_any(plugin, ("robotNamespace",)) or "", relative)
+            if found:
+                return found
+    topic = (sensor.findtext("topic") or "").strip()
+    return _qualified("", topic) if topic else None
+
+
 def ros_topic(sensor: etree._Element) -> str | None:
     """The topic a Gazebo sensor publishes on, as its tags name it: a ROS 2 gazebo_ros
     plugin's ``<ros><namespace>`` with its ``~/out`` remapped (else ``<plugin
     name>/out``), a ROS 1 plugin's ``<robotNamespace>``/``<topicName>``, or gz's
     ``<topic>``; None where none is named."""
-    for plugin in _plugins(sensor):
-        ros = plugin.find("ros")
-        if ros is not None:
-            namespace = (ros.findtext("namespace") or "").strip()
-            out = f"{(plugin.get('name') or 'sensor').strip()}/out"
-            for remap in ros.findall("remapping"):
-                left, sep, right = (remap.text or "").partition(":=")
-                if sep and left.strip() in ("~/out", "out"):
-                    out = right.strip()
-            found = _qualified(namespace, out.removeprefix("~/"))
-            if found:
-                return found
-        topic = _find_any(plugin, ("topicName", "topic_name"))
-        if topic:
-            found = _qualified(_find_any(plugin, ("robotNamespace",)) or "", topic)
-            if found:
-                return found
-    topic = (sensor.findtext("topic") or "").strip()
-    return _qualified("", topic) if topic else None
+    return _named_topic(
+        sensor,
+        lambda plugin: f"{(plugin.get('name') or 'sensor').strip()}/out",
+        "out",
+        lambda plugin: _find_any(plugin, ("topicName", "topic_name")),
+    )
 
 
 def ros_camera_topic(sensor: etree._Element) -> str | None:
@@ -417,29 +431,21 @@ def ros_camera_topic(sensor: etree._Element) -> str | None:
     ``~/image_raw`` (remapped or not), a ROS 1 plugin's ``<robotNamespace>``,
     ``<cameraName>`` and ``<imageTopicName>``, or gz's ``<topic>``; None where none is
     named (the camera_info topic is its sibling, ``.../camera_info``)."""
-    name = (sensor.get("name") or "camera").strip()
-    for plugin in _plugins(sensor):
-        ros = plugin.find("ros")
-        if ros is not None:
-            namespace = (ros.findtext("namespace") or "").strip()
-            camera = (plugin.findtext("camera_name") or name).strip()
-            image = f"{camera}/image_raw"
-            for remap in ros.findall("remapping"):
-                left, sep, right = (remap.text or "").partition(":=")
-                if sep and left.strip() in ("~/image_raw", "image_raw"):
-                    image = right.strip()
-            found = _qualified(namespace, image.removeprefix("~/"))
-            if found:
-                return found
+    default = (sensor.get("name") or "camera").strip()
+
+    def ros1(plugin: etree._Element) -> str | None:
         topic = _find_any(plugin, ("imageTopicName",))
-        if topic:
-            camera = _find_any(plugin, ("cameraName",)) or ""
-            joined = topic if topic.startswith("/") or not camera else f"{camera}/{topic}"
-            found = _qualified(_find_any(plugin, ("robotNamespace",)) or "", joined)
-            if found:
-                return found
-    topic = (sensor.findtext("topic") or "").strip()
-    return _qualified("", topic) if topic else None
+        camera = _find_any(plugin, ("cameraName",))
+        if topic and camera and not topic.startswith("/"):
+            return f"{camera}/{topic}"
+        return topic
+
+    return _named_topic(
+        sensor,
+        lambda plugin: f"{(plugin.findtext('camera_name') or default).strip()}/image_raw",
+        "image_raw",
+        ros1,
+    )
 
 
 def ros_frame(sensor: etree._Element) -> str | None:
