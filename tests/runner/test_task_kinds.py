@@ -14,12 +14,15 @@ import pytest
 
 from urdf2mjcf.errors import CommandError, FacilityError
 from urdf2mjcf.runner import task_kinds
+from urdf2mjcf.runner.checks import Waypoints
 from urdf2mjcf.runner.rover import rover_drive_command
 from urdf2mjcf.runner.rover.console import Console
 from urdf2mjcf.runner.rover.deliver_cli import TASKS as TASK_CHOICES
 from urdf2mjcf.runner.rover.plan_file import check_shape
 from urdf2mjcf.runner.rover.tasks import TASKS, Turn
 from urdf2mjcf.runner.task_kinds import KINDS, STRAIGHT, TURN, WHEELS, family, keys_table
+from urdf2mjcf.runner.waypoints import KINDS as STEP_KINDS
+from urdf2mjcf.schema import Source
 
 ROOT = Path(__file__).resolve().parents[2]
 RUNNER = ROOT / "urdf2mjcf" / "runner"
@@ -156,6 +159,24 @@ def test_plan_checks_refuse_what_the_registry_bounds(kind: str, param: Any) -> N
             check_shape(_plan(_task(kind, **{param.name: param.low})), None)
 
 
+@pytest.mark.parametrize(
+    ("kind", "param"),
+    [(k.name, p) for k in family("step").values() for p in k.params if p.type in (int, float)],
+    ids=lambda x: x if isinstance(x, str) else x.name,
+)
+def test_step_checks_refuse_what_the_registry_bounds(kind: str, param: Any) -> None:
+    w = Waypoints(None, Source("steps", error=FacilityError))
+    assert STEP_KINDS[kind][0][param.name] is param.check  # the step reads its declaration
+    assert param.low is not None and param.high is not None
+    param.check(param.type(param.high), f"{kind}.{param.name}", w)
+    outside = int(param.high) + 1 if param.type is int else param.high * 1.5
+    with pytest.raises(FacilityError, match=f"{kind}.{param.name}"):
+        param.check(outside, f"{kind}.{param.name}", w)
+    below = param.low if param.low_open else param.low - 1
+    with pytest.raises(FacilityError, match=f"{kind}.{param.name}"):
+        param.check(param.type(below), f"{kind}.{param.name}", w)
+
+
 class _Sim:
     """What the console's ``/command`` asks of its simulation."""
 
@@ -189,3 +210,9 @@ def test_the_docs_table_is_the_generated_one() -> None:
     text = (ROOT / "docs" / "mira3d.md").read_text()
     table = text.split("<!-- task-kinds begin -->\n", 1)[1].split("<!-- task-kinds end -->")[0]
     assert table == "\n".join(keys_table()) + "\n"
+
+
+def test_the_demo_docs_step_table_is_the_generated_one() -> None:
+    text = (ROOT / "docs" / "demo.md").read_text()
+    table = text.split("<!-- step-kinds begin -->\n", 1)[1].split("<!-- step-kinds end -->")[0]
+    assert table == "\n".join(keys_table(("step",))) + "\n"

@@ -1,10 +1,11 @@
 """One registry of task kinds, each parameter declared once.
 
 A :class:`TaskKind` names its family (``drive``/``arm``: a rover task plan's
-``tasks``/``arm``; ``task``: ``rover-drive --task``; ``command``: the console's
-``POST /command`` fields) and its :class:`Param` s: type, unit, range, default,
-meaning. The plan's key checks, ``rover-drive``'s flag defaults and ranges, the
-console's number bounds and the docs' table of plan keys are read from here
+``tasks``/``arm``; ``step``: a demo waypoints file's step; ``task``:
+``rover-drive --task``; ``command``: the console's ``POST /command`` fields) and its
+:class:`Param` s: type, unit, range, default, meaning. The plan's and the demo steps'
+key checks and defaults, ``rover-drive``'s flag defaults and ranges, the console's
+number bounds and the docs' table of plan keys are read from here
 (``tests/runner/test_task_kinds.py`` checks no default is declared twice).
 """
 
@@ -13,7 +14,25 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from .checks import DURATION_MAX, JOINTS_MAX, Check, count, flag, ranged
+from ..limits import TAG_COUNT
+from .checks import (
+    DURATION_MAX,
+    HINGE_STEPS_MAX,
+    IMAGE_MAX,
+    JOINTS_MAX,
+    PIXELS_MAX,
+    Check,
+    action,
+    count,
+    degrees,
+    duration,
+    flag,
+    ranged,
+    seconds,
+)
+from .checks import (
+    name as a_name,
+)
 
 Family = Literal["step", "drive", "arm", "task", "command", "ros2"]
 
@@ -53,6 +72,9 @@ class Param:
     default: Any = None
     allowed_text: str | None = None
     """The values in words, where the range alone does not say them."""
+    given: Check | None = None
+    """The YAML check, where the shared one of its kind is meant (the demo's ``seconds``
+    and ``duration``: the waypoints file's time bound finds them by identity)."""
 
     @property
     def required(self) -> bool:
@@ -64,13 +86,15 @@ class Param:
             return self.allowed_text
         if self.type is bool:
             return "true, false"
-        if self.low_open:
-            return f"above {self.low:g}, up to {self.high:g} {self.unit}"
-        return f"{self.low:g} .. {self.high:g} {self.unit}"
+        low, high = (f"{int(x)}" if self.type is int else f"{x:g}" for x in (self.low, self.high))  # type: ignore[arg-type]
+        text = f"above {low}, up to {high}" if self.low_open else f"{low} .. {high}"
+        return f"{text} {self.unit}".rstrip()
 
     @property
     def check(self) -> Check:
         """The YAML check of a value of this parameter."""
+        if self.given is not None:
+            return self.given
         if self.type is bool:
             return flag
         assert self.low is not None and self.high is not None
@@ -171,6 +195,53 @@ ARM = register(TaskKind("arm", "command", (
 ), "POST /command {arm: {JOINT: rad}}: arm targets, clipped to the joints' ranges"))  # fmt: skip
 
 
+def _given(name: str, check: Check, type_: type, unit: str, doc: str, default: Any = None,
+           allowed: str | None = None, low: float | None = None, high: float | None = None,
+           low_open: bool = False) -> Param:  # fmt: skip
+    return Param(name, type_, unit, doc, low, high, low_open, default=default,
+                 allowed_text=allowed, given=check)  # fmt: skip
+
+
+_CAMERA = _given("camera", a_name, str, "", "the camera role", "wrist", "a camera role")
+
+HINGE = register(TaskKind("hinge", "step", (
+    _given("joint", a_name, str, "", "the hinge joint", allowed="a joint of the facility"),
+    _given("steps", count(HINGE_STEPS_MAX, 1), int, "", "poses along the arc", 8,
+           f"1 .. {HINGE_STEPS_MAX}", 1, HINGE_STEPS_MAX),
+    _given("step_deg", degrees, float, "deg", "the arc's angle per pose", 11.5,
+           low=-360.0, high=360.0),
+    _given("hold_orientation", flag, bool, "", "keep the tool's orientation", True),
+    _given("step_time", duration, float, "s", "the least time per pose", 1.0,
+           low=0.0, high=DURATION_MAX, low_open=True),
+), "the arc around a hinge joint"))  # fmt: skip
+
+GRIPPER = register(TaskKind("gripper", "step", (
+    _given("action", action, str, "m", "open, close or an opening",
+           allowed="open, close or an opening in m"),
+    _given("seconds", seconds, float, "s", "the gripper's ramp", 1.0,
+           low=0.0, high=DURATION_MAX),
+), "open or close the gripper"))  # fmt: skip
+
+LOOK = register(TaskKind("look", "step", (
+    _CAMERA,
+    _given("min_pixels", count(PIXELS_MAX), int, "px", "the handle's least red pixels", 200,
+           low=0, high=PIXELS_MAX),
+    _given("border_px", count(IMAGE_MAX), int, "px", "the handle's least margin in view", 2,
+           low=0, high=IMAGE_MAX),
+), "find the red handle in the wrist camera's image; set the handle frame"))  # fmt: skip
+
+LOCALIZE = register(TaskKind("localize", "step", (
+    _given("component", a_name, str, "", "the component to locate", allowed="a component"),
+    _CAMERA,
+    _given("min_tags", count(TAG_COUNT), int, "", "the least tags seen", 1, low=0, high=TAG_COUNT),
+), "a component's pose from its AprilTags"))  # fmt: skip
+
+WAIT = register(TaskKind("wait", "step", (
+    _given("seconds", seconds, float, "s", "how long to wait", low=0.0,
+           high=DURATION_MAX),
+), "wait, the arm held"))  # fmt: skip
+
+
 def keys_table(families: tuple[Family, ...] = ("drive", "arm")) -> list[str]:
     """The kinds' parameters as a Markdown table (docs/mira3d.md shows the plan's)."""
     rows = ["| kind | key | values | default | meaning |", "|---|---|---|---|---|"]
@@ -179,6 +250,14 @@ def keys_table(families: tuple[Family, ...] = ("drive", "arm")) -> list[str]:
             continue
         for p in kind.params:
             d = p.default
-            shown = "required" if d is None else str(d).lower() if isinstance(d, bool) else f"{d:g}"
+            shown = (
+                "required"
+                if d is None
+                else str(d).lower()
+                if isinstance(d, bool)
+                else f"`{d}`"
+                if isinstance(d, str)
+                else f"{d:g}"
+            )
             rows.append(f"| `{name}` | `{p.name}` | {p.allowed} | {shown} | {p.doc} |")
     return rows
