@@ -65,8 +65,9 @@ def _literal(node: ast.expr | None) -> Any:
 
 def _second_defaults(runner: Path = RUNNER) -> list[str]:
     """Each literal default for a declared parameter outside the registry: a rover
-    class's field, a click option's ``default=``."""
+    class's field, a click option's ``default=``, a demo step's ``step.get(KEY, literal)``."""
     defaults, found = _defaults(), []
+    step_keys = {p.name for k in family("step").values() for p in k.params if not p.required}
     for path in sorted(runner.rglob("*.py")):
         if path.name == "task_kinds.py":
             continue
@@ -86,6 +87,18 @@ def _second_defaults(runner: Path = RUNNER) -> list[str]:
                     for kw in node.keywords:
                         if kw.arg == "default" and _literal(kw.value) is not None:
                             found.append(f"{where}:{node.lineno} {flags[0]} default")
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Attribute)
+                and node.func.attr == "get"
+                and isinstance(node.func.value, ast.Name)
+                and node.func.value.id == "step"
+                and len(node.args) == 2
+                and isinstance(node.args[0], ast.Constant)
+                and node.args[0].value in step_keys
+                and isinstance(node.args[1], (ast.Constant, ast.UnaryOp))
+            ):
+                found.append(f"{where}:{node.lineno} step.get({node.args[0].value!r})")
     return found
 
 
@@ -99,9 +112,15 @@ def test_the_scan_finds_a_second_default(tmp_path: Path) -> None:
     (rover / "bad.py").write_text(
         "import click\nclass Turn:\n    rate: float = 0.5\n"
         "@click.option('--speed', default=0.5)\ndef f(): pass\n"
+        "def g(step): return step.get('steps', 8), step.get('camera', 'wrist')\n"
     )
     found = _second_defaults(tmp_path / "runner")
-    assert [f.split(" ", 1)[1] for f in found] == ["Turn.rate", "--speed default"]
+    assert [f.split(" ", 1)[1] for f in found] == [
+        "Turn.rate",
+        "--speed default",
+        "step.get('steps')",
+        "step.get('camera')",
+    ]
 
 
 def test_the_runtime_defaults_are_the_registrys() -> None:
