@@ -21,6 +21,7 @@ list is whole):
 ``checks``           checks of a stranger's waypoints file: numbers, names, lists, mappings
 ``waypoints``        the demo's waypoints file, checked before anything moves
 ``steps``            the demo's step kinds, one registered class each
+``task_kinds``       every task kind's parameters declared once (type, unit, range, default)
 ``demo``             the steps of the demo, executed and judged one by one
 ``trials``           seeded trials, each on a facility rebuilt with its seed
 ``trial_options``    ``--workers`` and ``--executor``, declared once

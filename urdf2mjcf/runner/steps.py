@@ -43,28 +43,34 @@ import mujoco
 import numpy as np
 
 from ..errors import StepError
-from ..limits import TAG_COUNT
 from . import ik, localize, perception
 from .checks import (
-    HINGE_STEPS_MAX,
-    IMAGE_MAX,
-    PIXELS_MAX,
     Check,
     Waypoints,
-    action,
     axis,
-    count,
-    degrees,
-    duration,
     flag,
     joint_values,
     joints,
     name,
     numbers,
-    seconds,
 )
 from .control import path_duration
 from .hinge import arc, hinge_axis, turned
+from .task_kinds import GRIPPER, HINGE, LOCALIZE, LOOK, WAIT, TaskKind
+
+
+def _keys(kind: TaskKind) -> dict[str, Check]:
+    """A step's schema, read from its declaration (:mod:`.task_kinds`)."""
+    return {p.name: p.check for p in kind.params}
+
+
+def _required(kind: TaskKind) -> tuple[str, ...]:
+    return tuple(p.name for p in kind.params if p.required)
+
+
+def _value(kind: TaskKind, step: dict, key: str) -> Any:
+    """``step``'s value of ``key``, or the declared default."""
+    return step[key] if key in step else kind.default(key)
 
 
 class Step:
@@ -99,7 +105,7 @@ def _length(value: list, want: int, where: str, w: Waypoints) -> None:
 
 
 def _camera(step: dict, at: str, fac: Any, w: Waypoints) -> None:
-    camera = step.get("camera", "wrist")
+    camera = step.get("camera", LOOK.default("camera"))
     if camera not in fac.robot.cameras:
         roles = ", ".join(fac.robot.cameras)
         raise w.fail(f"{at}.camera", f"'{camera}' is not a camera role; roles: {roles}")
@@ -183,14 +189,8 @@ class Relative(Step):
 @register
 class Hinge(Step):
     kind = "hinge"
-    keys = {
-        "joint": name,
-        "steps": count(HINGE_STEPS_MAX, 1),
-        "step_deg": degrees,
-        "hold_orientation": flag,
-        "step_time": duration,
-    }
-    required = ("joint",)
+    keys = _keys(HINGE)
+    required = _required(HINGE)
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
         if mujoco.mj_name2id(fac.model, mujoco.mjtObj.mjOBJ_JOINT, step["joint"]) < 0:
@@ -202,14 +202,14 @@ class Hinge(Step):
         # the axis where the robot believes the hinge is (the estimate, for a mockup's)
         anchor, direction = hinge_axis(m, j, demo.body_pose(int(m.jnt_bodyid[j])))
         p, R = ik.site_pose(m, demo.d, demo.site, demo.ctl.target, demo.r.qpos)
-        hold = step.get("hold_orientation", True)
+        hold = _value(HINGE, step, "hold_orientation")
         poses = arc(
             anchor,
             direction,
             p,
             R,
-            steps=step.get("steps", 8),
-            step_deg=step.get("step_deg", 11.5),
+            steps=_value(HINGE, step, "steps"),
+            step_deg=_value(HINGE, step, "step_deg"),
             hold_orientation=hold,
         )
         q = demo.ctl.target.copy()
@@ -223,7 +223,8 @@ class Hinge(Step):
                 waypoints.append(q)
             path = np.array(waypoints)
             demo.ctl.follow(
-                path, max(step.get("step_time", 1.0), path_duration(path, demo.ctl.vmax))
+                path,
+                max(_value(HINGE, step, "step_time"), path_duration(path, demo.ctl.vmax)),
             )
             demo.ctl.settle(timeout=0.5)
             prev = ang
@@ -232,20 +233,20 @@ class Hinge(Step):
 @register
 class Gripper(Step):
     kind = "gripper"
-    keys = {"action": action, "seconds": seconds}
-    required = ("action",)
+    keys = _keys(GRIPPER)
+    required = _required(GRIPPER)
     settles = False
 
     def run(self, demo: Any, step: dict) -> None:
         what = step["action"]
         opening = {"open": demo.r.gripper_open, "close": demo.r.gripper_closed}.get(what, what)
-        demo.ctl.set_gripper(float(opening), step.get("seconds", 1.0))
+        demo.ctl.set_gripper(float(opening), _value(GRIPPER, step, "seconds"))
 
 
 @register
 class Look(Step):
     kind = "look"
-    keys = {"camera": name, "min_pixels": count(PIXELS_MAX), "border_px": count(IMAGE_MAX)}
+    keys = _keys(LOOK)
     settles = False
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
@@ -253,16 +254,16 @@ class Look(Step):
 
     def run(self, demo: Any, step: dict) -> None:
         m, d = demo.m, demo.d
-        cam = demo.camera(step.get("camera", "wrist"))
+        cam = demo.camera(_value(LOOK, step, "camera"))
         rgb, depth = cam.rgbd(d)
-        g = perception.find_handle(m, d, cam.cam, rgb, depth, step.get("min_pixels", 200))
+        g = perception.find_handle(m, d, cam.cam, rgb, depth, _value(LOOK, step, "min_pixels"))
         mask = perception.red_mask(rgb)
         demo.snapshot(step["name"], (mask[..., None] * np.array([255, 255, 255])).astype(np.uint8))
         if g is None:
             raise StepError(
                 f"the CTB handle is not in the wrist camera's view ({int(mask.sum())} red pixels)"
             )
-        border = step.get("border_px", 2)
+        border = _value(LOOK, step, "border_px")
         vs, us = np.nonzero(g.segment.mask)
         h, w = mask.shape
         if (
@@ -291,8 +292,8 @@ class Look(Step):
 @register
 class Localize(Step):
     kind = "localize"
-    keys = {"component": name, "camera": name, "min_tags": count(TAG_COUNT)}
-    required = ("component",)
+    keys = _keys(LOCALIZE)
+    required = _required(LOCALIZE)
     settles = False
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
@@ -303,10 +304,10 @@ class Localize(Step):
         _camera(step, at, fac, w)
 
     def run(self, demo: Any, step: dict) -> None:
-        comp, role = step["component"], step.get("camera", "wrist")
+        comp, role = step["component"], _value(LOCALIZE, step, "camera")
         found = localize.locate(demo.camera(role), demo.d, demo.fac.manifest)
         est = found.get(comp)
-        need = step.get("min_tags", 1)
+        need = _value(LOCALIZE, step, "min_tags")
         if est is None or len(est.tags) < need:
             seen = sorted(t for e in found.values() for t in e.tags)
             raise StepError(
@@ -323,8 +324,8 @@ class Localize(Step):
 @register
 class Wait(Step):
     kind = "wait"
-    keys = {"seconds": seconds}
-    required = ("seconds",)
+    keys = _keys(WAIT)
+    required = _required(WAIT)
     settles = False
 
     def run(self, demo: Any, step: dict) -> None:

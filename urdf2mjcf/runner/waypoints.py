@@ -51,6 +51,7 @@ from .checks import (  # noqa: F401  (the limits: documented as waypoints.*)
     speed,
 )
 from .steps import STEPS
+from .task_kinds import HINGE
 
 COMMON: dict[str, Check] = {
     "name": name,
@@ -114,7 +115,8 @@ def _written_seconds(step: Mapping, keys: Mapping[str, Check]) -> float:
     total = 0.0
     for key, value in step.items():
         if keys.get(key) in _TIMED:
-            total += float(value) * (step.get("steps", 8) if key == "step_time" else 1)
+            steps = step.get("steps", HINGE.default("steps"))
+            total += float(value) * (steps if key == "step_time" else 1)
     return total
 
 

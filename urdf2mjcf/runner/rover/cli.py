@@ -15,6 +15,7 @@ from ...limits import SEED_MAX
 from ...ros2.options import Transport, ros2_options, transport
 from ..executors import Kind
 from ..live_options import check_allow_origin, live_options
+from ..task_kinds import STRAIGHT, TURN
 from ..trial_options import trial_options
 from .deliver_cli import TASKS, TaskRun, check_task_options, task_command
 from .drift import PathLog, check_plot, drift_line, write_plot
@@ -53,7 +54,7 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
 @click.option(
     "--speed",
     type=FiniteFloat(0.0, SPEED_MAX, low_open=True),
-    default=DRIVES["straight"].keys["speed"].default,
+    default=STRAIGHT.default("speed"),
     show_default=True,
     help=f"m/s, above 0 and at most {SPEED_MAX:g}",
 )
@@ -68,7 +69,7 @@ PLAN_EXCLUDES = ("distance", "speed", "turn", "rate", "arm", "task")
 @click.option(
     "--rate",
     type=FiniteFloat(0.0, RATE_MAX, low_open=True),
-    default=DRIVES["turn"].keys["rate_deg"].default,
+    default=TURN.default("rate_deg"),
     show_default=True,
     help=f"deg/s while turning, above 0 and at most {RATE_MAX:g}",
 )

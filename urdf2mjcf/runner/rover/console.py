@@ -36,6 +36,8 @@ import click
 from click.core import ParameterSource
 
 from ...loopback_guard import SECURITY_HEADERS, Guard, new_token
+from ..task_kinds import ARM, WHEELS, Param
+from ..task_kinds import NUMBER_MAX as NUMBER_MAX  # importable where it was
 from .console_camera import Cameras, CameraUnavailable, image_sizes
 from .console_page import CSP, PAGE
 from .console_sim import CommandError, ConsoleSim
@@ -55,11 +57,10 @@ CLIENTS_MAX = 32
 """Connections served at once (a page holds about 8); one more is answered 503."""
 DIGITS_MAX = 40
 """Characters of one number in a request body, at most."""
-NUMBER_MAX = 1e6
-"""Magnitude of a commanded number, at most (then clipped to the actuator's range)."""
 
 
-def _number(value: Any, where: str) -> float:
+def _number(value: Any, where: str, param: Param) -> float:
+    """``value`` checked as ``param`` (a request field the task registry declares)."""
     # bool is an int in Python, never a speed
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise CommandError(f"{where}: {json.dumps(value)[:40]} is not a finite number")
@@ -69,9 +70,16 @@ def _number(value: Any, where: str) -> float:
         x = math.inf
     if not math.isfinite(x):
         raise CommandError(f"{where}: not a finite number")
-    if abs(x) > NUMBER_MAX:
-        raise CommandError(f"{where}: {x:g} is out of range (at most {NUMBER_MAX:g} either way)")
+    if not param.within(x):
+        raise CommandError(f"{where}: {x:g} is out of range ({_bounds(param)})")
     return x
+
+
+def _bounds(param: Param) -> str:
+    high = param.high
+    if high is not None and param.low == -high:
+        return f"at most {high:g} either way"
+    return param.allowed
 
 
 def _digits(text: str) -> str:
@@ -183,13 +191,17 @@ class Console:
             w = _object(body["wheels"], "wheels", ("left", "right"))
             if set(w) != {"left", "right"}:
                 raise CommandError("wheels: give both 'left' and 'right' (rad/s)")
-            wheels = (_number(w["left"], "wheels.left"), _number(w["right"], "wheels.right"))
+            left, right = WHEELS.param("left"), WHEELS.param("right")
+            wheels = (
+                _number(w["left"], "wheels.left", left),
+                _number(w["right"], "wheels.right", right),
+            )
         arm = None
         if "arm" in body:
             a = body["arm"]
             if not isinstance(a, dict):
                 raise CommandError("arm: expected a JSON object {JOINT: rad}")
-            arm = {str(j): _number(v, f"arm.{j}") for j, v in a.items()}
+            arm = {str(j): _number(v, f"arm.{j}", ARM.param("joint")) for j, v in a.items()}
         if wheels is None and arm is None:
             raise CommandError("/command: give 'wheels' and/or 'arm'")
         return self.sim.command(name, wheels, arm)

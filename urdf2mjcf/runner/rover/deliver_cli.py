@@ -12,8 +12,10 @@ from pathlib import Path
 import click
 
 from ..executors import Kind
+from ..task_kinds import family
 
-TASKS = ("deliver",)
+TASKS = tuple(family("task"))
+"""The ``--task`` choices: the registry's ``task`` kinds."""
 
 
 @dataclass(frozen=True)

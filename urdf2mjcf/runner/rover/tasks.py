@@ -3,8 +3,9 @@
 
 :data:`TASKS` maps each kind a task plan names (``straight``, ``turn``, ``hold``,
 ``arm_wave``) to its registered class, as :mod:`urdf2mjcf.runner.steps` does for the
-demo's steps: ``keys`` (each key's check, allowed values, default and meaning) and
-``required`` are its schema, :meth:`TaskKind.check` checks a task against one rover of
+demo's steps: ``keys`` and ``required`` are its schema, read from the kind's
+declaration in :mod:`urdf2mjcf.runner.task_kinds` (each key's type, range, default and
+meaning, declared once), :meth:`TaskKind.check` checks a task against one rover of
 the bundle (an arm joint index against its arm joints), :meth:`TaskKind.build` makes
 the task from a checked mapping and :meth:`DriveKind.run` runs it on rovers at once.
 ``rover-drive --distance/--turn/--arm`` and ``--plan`` (:mod:`.plan_file`) both make
@@ -15,35 +16,31 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from ..checks import DURATION_MAX, JOINTS_MAX, Check, Waypoints, count, flag, ranged
+from ..checks import Check, Waypoints
+from ..task_kinds import (  # noqa: F401  (the limits, importable where they were)
+    ACCEL_MAX,
+    AMPLITUDE_MAX,
+    ARM_WAVE,
+    DISTANCE_MAX,
+    HOLD,
+    HOLD_MAX,
+    PERIOD_RANGE,
+    RATE_MAX,
+    SPEED_MAX,
+    STRAIGHT,
+    TURN,
+    TURN_MAX,
+    Param,
+)
+from ..task_kinds import TaskKind as Declared
+from ..task_kinds import keys_table as _keys_table
 from .roles import Rover
 from .state import SimState
-
-DISTANCE_MAX = 1_000.0
-"""m: the longest drive (it must also end within ``sim.TASK_TIMEOUT``
-simulated seconds, 120 s: at 0.5 m/s, about 55 m)."""
-SPEED_MAX = 10.0
-"""m/s: the fastest drive asked for (the wheel servos' limits cap the real speed)."""
-ACCEL_MAX = 10.0
-"""m/s^2: the largest speed-up or braking of a drive."""
-TURN_MAX = 3_600.0
-"""deg: the largest turn in place (ten turns)."""
-RATE_MAX = 360.0
-"""deg/s: the fastest turn asked for."""
-TURN_RATE_DEG = 30.0
-"""deg/s: a turn's top rate unless it says (``Turn.rate``, the plan's ``rate_deg`` and
-``rover-drive --rate`` all take it from here)."""
-HOLD_MAX = 100.0
-"""s: the longest hold (under ``sim.TASK_TIMEOUT``, 120 s, so a hold always ends)."""
-AMPLITUDE_MAX = 3.0
-"""rad: the largest arm swing either way."""
-PERIOD_RANGE = (0.5, DURATION_MAX)
-"""s: an arm swing's period (a shorter one only shakes the position servos)."""
 
 
 class Task:
@@ -70,9 +67,9 @@ class Straight(Task):
     with the IMU (a rover's heading hold), then stop."""
 
     distance: float
-    speed: float = 0.5
-    accel: float = 0.5
-    hold_heading: bool = True
+    speed: float = STRAIGHT.default("speed")
+    accel: float = STRAIGHT.default("accel")
+    hold_heading: bool = STRAIGHT.default("hold_heading")
     heading_gain: float = 1.5
     tolerance: float = 0.002
 
@@ -102,10 +99,10 @@ class Turn(Task):
     or by the wheels, then stop."""
 
     angle: float
-    rate: float = math.radians(TURN_RATE_DEG)
-    """rad/s."""
+    rate: float = math.radians(TURN.default("rate_deg"))
+    """rad/s: the plan's ``rate_deg``, 30 deg/s unless given."""
     accel: float = 1.0
-    imu: bool = True
+    imu: bool = TURN.default("imu")
     tolerance: float = math.radians(0.3)
 
     def start(self, sim: SimState, rover: Rover) -> None:
@@ -132,7 +129,7 @@ class Turn(Task):
 class Hold(Task):
     """Stand still for ``duration`` s."""
 
-    duration: float = 1.0
+    duration: float = HOLD.default("duration")
 
     def start(self, sim: SimState, rover: Rover) -> None:
         self._t_end = sim.d.time + self.duration
@@ -148,9 +145,9 @@ class ArmWave:
     """Swing one arm joint (index in the roles' arm_joints) about its home target:
     ``amplitude`` rad, ``period`` s, eased in over the first period."""
 
-    joint: int = 0
-    amplitude: float = 0.4
-    period: float = 6.0
+    joint: int = ARM_WAVE.default("joint")
+    amplitude: float = ARM_WAVE.default("amplitude")
+    period: float = ARM_WAVE.default("period")
 
     def targets(self, home: np.ndarray, t: float) -> np.ndarray:
         q = home.copy()
@@ -164,32 +161,25 @@ class ArmWave:
 
 @dataclass(frozen=True)
 class Key:
-    """One key of a task kind: its check, what it allows and its default (shown in the
-    docs' table, generated from these), and what it means."""
+    """One key of a task kind, read from its declared :class:`~..task_kinds.Param`."""
 
-    check: Check
-    allowed: str
-    meaning: str
-    default: Any = None
-    """None: the key is required."""
+    param: Param
 
+    @property
+    def check(self) -> Check:
+        return self.param.check
 
-def default_of(task: type, field: str) -> Any:
-    """A task dataclass's default for ``field``: the one declaration the plan's keys and
-    the command line's options take theirs from."""
-    (found,) = [f for f in fields(task) if f.name == field]
-    return found.default
+    @property
+    def default(self) -> Any:
+        return self.param.default
 
 
-def _number(
-    low: float, high: float, unit: str, meaning: str, default: Any = None, *, low_open: bool = False
-) -> Key:
-    allowed = f"above {low:g}, up to {high:g} {unit}" if low_open else f"{low:g} .. {high:g} {unit}"
-    return Key(ranged(low, high, low_open), allowed, meaning, default)
+def _keys(kind: Declared) -> dict[str, Key]:
+    return {p.name: Key(p) for p in kind.params}
 
 
-def _flag(meaning: str, default: bool) -> Key:
-    return Key(flag, "true, false", meaning, default)
+def _required(kind: Declared) -> tuple[str, ...]:
+    return tuple(p.name for p in kind.params if p.required)
 
 
 class TaskKind:
@@ -256,26 +246,8 @@ def register(cls: type[TaskKind]) -> type[TaskKind]:
 @register
 class StraightKind(DriveKind):
     kind = "straight"
-    keys = {
-        "distance": _number(
-            -DISTANCE_MAX, DISTANCE_MAX, "m", "drive straight this far (negative: backwards)"
-        ),
-        "speed": _number(
-            0.0, SPEED_MAX, "m/s", "top speed", default_of(Straight, "speed"), low_open=True
-        ),
-        "accel": _number(
-            0.0,
-            ACCEL_MAX,
-            "m/s²",
-            "speed-up and braking",
-            default_of(Straight, "accel"),
-            low_open=True,
-        ),
-        "hold_heading": _flag(
-            "hold the start heading with the IMU", default_of(Straight, "hold_heading")
-        ),
-    }
-    required = ("distance",)
+    keys = _keys(STRAIGHT)
+    required = _required(STRAIGHT)
 
     def least_seconds(self, spec: Mapping) -> float:
         return abs(float(spec["distance"])) / float(self.value(spec, "speed"))
@@ -292,14 +264,8 @@ class StraightKind(DriveKind):
 @register
 class TurnKind(DriveKind):
     kind = "turn"
-    keys = {
-        "angle_deg": _number(-TURN_MAX, TURN_MAX, "deg", "turn in place (positive: left)"),
-        "rate_deg": _number(0.0, RATE_MAX, "deg/s", "top turn rate", TURN_RATE_DEG, low_open=True),
-        "imu": _flag(
-            "measure the turn with the IMU (false: with the wheels)", default_of(Turn, "imu")
-        ),
-    }
-    required = ("angle_deg",)
+    keys = _keys(TURN)
+    required = _required(TURN)
 
     def least_seconds(self, spec: Mapping) -> float:
         return abs(float(spec["angle_deg"])) / float(self.value(spec, "rate_deg"))
@@ -315,11 +281,8 @@ class TurnKind(DriveKind):
 @register
 class HoldKind(DriveKind):
     kind = "hold"
-    keys = {
-        "duration": _number(
-            0.0, HOLD_MAX, "s", "stand still, wheels held", default_of(Hold, "duration")
-        )
-    }
+    keys = _keys(HOLD)
+    required = _required(HOLD)
 
     def least_seconds(self, spec: Mapping) -> float:
         return float(self.value(spec, "duration"))
@@ -332,27 +295,8 @@ class HoldKind(DriveKind):
 class ArmWaveKind(TaskKind):
     kind = "arm_wave"
     arm = True
-    keys = {
-        "joint": Key(
-            count(JOINTS_MAX),
-            "0 .. the rover's arm joints - 1",
-            "arm joint (roles order)",
-            default_of(ArmWave, "joint"),
-        ),
-        "amplitude": _number(
-            -AMPLITUDE_MAX,
-            AMPLITUDE_MAX,
-            "rad",
-            "swing about the home target",
-            default_of(ArmWave, "amplitude"),
-        ),
-        "period": _number(
-            *PERIOD_RANGE,
-            "s",
-            "one swing, eased in over the first",
-            default_of(ArmWave, "period"),
-        ),
-    }
+    keys = _keys(ARM_WAVE)
+    required = _required(ARM_WAVE)
 
     def check(self, spec: Mapping, at: str, rover: Rover, w: Waypoints) -> None:
         joint, n = self.value(spec, "joint"), len(rover.arm)
@@ -375,15 +319,4 @@ DRIVES: dict[str, DriveKind] = {k: t for k, t in TASKS.items() if isinstance(t, 
 
 def keys_table() -> list[str]:
     """The task kinds' keys as a Markdown table (docs/mira3d.md shows it; a test checks)."""
-    rows = ["| kind | key | values | default | meaning |", "|---|---|---|---|---|"]
-    for kind, task in TASKS.items():
-        for key, k in task.keys.items():
-            default = (
-                "required"
-                if k.default is None
-                else str(k.default).lower()
-                if isinstance(k.default, bool)
-                else f"{k.default:g}"
-            )
-            rows.append(f"| `{kind}` | `{key}` | {k.allowed} | {default} | {k.meaning} |")
-    return rows
+    return _keys_table(("drive", "arm"))
