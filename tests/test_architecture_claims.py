@@ -84,8 +84,8 @@ def test_only_the_documented_passes_read_the_users_files(tmp_path, monkeypatch):
     assert set(seen) - {"certificate"} == READERS, {k: sorted(v)[:3] for k, v in seen.items()}
     assert str(source) in seen["xacro"]
     assert all(Path(p).suffix.lower() in meshes.FORMATS for p in seen["meshes"])
-    # the certificate reads the description and its meshes again, as an independent reference
-    assert any(Path(p).suffix.lower() in meshes.FORMATS for p in seen["certificate"])
+    # outside the passes only the certificate reads (the description and its meshes, as an
+    # independent reference; figures the cache already holds are not read again)
     claim = re.search(r"Of the passes, only (.*?) read the\s+user's files", DOC, re.S)
     assert claim, "docs/architecture.md no longer says which passes read the user's files"
     assert set(re.findall(r"`(\w+)`", claim.group(1))) == READERS
