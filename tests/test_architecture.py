@@ -235,7 +235,9 @@ def test_the_docs_number_the_passes_in_the_order_they_run():
     order = _pass_order()
     assert order[:2] == ["xacro", "parse"] and order[-2:] == ["extension", "contacts"]
     text = DOC.read_text()
-    numbered = re.findall(r"^\| `urdf2mjcf/passes/(\w+)(?:/__init__)?\.py` \| pass (\d+):", text, re.M)
+    numbered = re.findall(
+        r"^\| `urdf2mjcf/passes/(\w+)(?:/__init__)?\.py` \| pass (\d+):", text, re.M
+    )
     assert [name for name, _ in sorted(numbered, key=lambda x: int(x[1]))] == order
     assert sorted(int(n) for _, n in numbered) == list(range(1, len(order) + 1))
     drawn = re.findall(r"│  passes/(\w+)(?:/|\.py)", text)  # the diagram, top to bottom
@@ -258,7 +260,97 @@ def test_the_runtime_reads_bundles_not_the_builder(module):
     compiler's passes (their shared limits live in urdf2mjcf.limits)."""
     modules = _modules()
     found = _imports(module, modules[module], modules)
-    builder = sorted(
-        t for t in found if t.startswith(("urdf2mjcf.facility", "urdf2mjcf.passes"))
-    )
+    builder = sorted(t for t in found if t.startswith(("urdf2mjcf.facility", "urdf2mjcf.passes")))
     assert builder == [], f"{module} imports the builder: {builder}"
+
+
+def _pass_of(module: str) -> str | None:
+    """The pass a module belongs to (``urdf2mjcf.passes.<name>``), None outside passes/."""
+    parts = module.split(".")
+    return ".".join(parts[:3]) if len(parts) >= 3 and parts[1] == "passes" else None
+
+
+def _runs(module: str, path: Path, modules: dict[str, Path]) -> list[str]:
+    """Other passes whose ``run`` ``module`` calls: ``from <pass> import run``, or
+    ``<alias>.run`` where ``alias`` is a module of another pass."""
+    mine = _pass_of(module)
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    aliases: dict[str, str] = {}
+    found = []
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level:
+            base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+            target = ".".join(base + ([node.module] if node.module else []))
+        else:
+            target = node.module or ""
+        for a in node.names:
+            sub = f"{target}.{a.name}"
+            other = _pass_of(sub if sub in modules else target)
+            if other is None or other == mine:
+                continue
+            if sub in modules:
+                aliases[a.asname or a.name] = sub
+            elif a.name == "run":
+                found.append(target)
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, ast.Attribute)
+            and node.attr == "run"
+            and isinstance(node.value, ast.Name)
+            and node.value.id in aliases
+        ):
+            found.append(aliases[node.value.id])
+    return sorted(set(found))
+
+
+@pytest.mark.parametrize("module", sorted(m for m in _modules() if _pass_of(m)))
+def test_no_pass_runs_another(module):
+    """A pass may read another pass's declarations (the actuator file's reader, a
+    constant) but runs none: the pipeline (``api._build``) runs the passes in order and
+    hands a pass what it needs of another (the actuators pass gets emit's document as a
+    function)."""
+    modules = _modules()
+    assert _runs(module, modules[module], modules) == []
+
+
+def test_the_no_pass_runs_another_check_catches_one(tmp_path):
+    package = tmp_path / "urdf2mjcf"
+    files = {
+        "__init__.py": "",
+        "passes/__init__.py": "",
+        "passes/emit.py": "def run(m):\n    return m\n",
+        "passes/a/__init__.py": "from .. import emit\n\n\ndef run(m):\n    return emit.run(m)\n",
+        "passes/b.py": "from .emit import run as emit_run\n",
+        "passes/c.py": "from . import emit\n\nX = emit.WORLD\n",
+    }
+    for name, text in files.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text)
+    modules = _modules(package)
+    assert _runs("urdf2mjcf.passes.a", modules["urdf2mjcf.passes.a"], modules) == [
+        "urdf2mjcf.passes.emit"
+    ]
+    assert _runs("urdf2mjcf.passes.b", modules["urdf2mjcf.passes.b"], modules) == [
+        "urdf2mjcf.passes.emit"
+    ]
+    assert _runs("urdf2mjcf.passes.c", modules["urdf2mjcf.passes.c"], modules) == []
+
+
+def test_no_module_imports_a_private_name_of_another():
+    """What a module shares it names without ``_``: a private name imported across
+    modules (a lock, a helper) is a contract nobody declared."""
+    found = []
+    for module, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (
+                node.level or "urdf2mjcf" in (node.module or "")
+            ):
+                found += [
+                    f"{module}: {node.module or '.'}.{a.name}"
+                    for a in node.names
+                    if a.name.startswith("_") and not a.name.startswith("__")
+                ]
+    assert found == [], "\n".join(found)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tests.golden import canonical
+from urdf2mjcf.mjcf.document import Document
 from urdf2mjcf.passes import collision, emit, extension, inertia, meshes, parse, validate, xacro
 
 INPUTS = Path(__file__).parent / "data" / "extension"
@@ -20,7 +21,7 @@ GOLDEN = Path(__file__).parent / "golden" / "extension"
 CASES = sorted(p.stem for p in INPUTS.glob("*.urdf"))
 
 
-def convert(case: str) -> emit.EmitResult:
+def convert(case: str) -> Document:
     doc = xacro.run(INPUTS / f"{case}.urdf", xacro.XacroConfig(use_environment=False))
     model = inertia.run(
         collision.run(meshes.run(parse.run(doc), meshes.MeshConfig()), collision.CollisionConfig()),
@@ -30,7 +31,7 @@ def convert(case: str) -> emit.EmitResult:
     return extension.run(result, model, extension.ExtensionConfig(resolver=doc.resolver))
 
 
-def compiled(result: emit.EmitResult) -> mujoco.MjModel:
+def compiled(result: Document) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(result.xml.decode(), dict(result.files))
 
 

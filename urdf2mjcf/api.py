@@ -8,14 +8,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from . import mjmodel
 from . import output as out
 from .cache import default_cache_dir
 from .certify import Certificate, CertificateFailed, CertifyConfig
 from .certify.tolerances import Tolerances
 from .errors import ConversionError, OutputError
-from .fmt import mjcf_bytes
 from .ir import Model, UrdfDocument
+from .mjcf import compile as mjcf_compile
+from .mjcf.document import Document, mjcf_bytes
 from .passes import (
     actuators,
     collision,
@@ -174,31 +174,31 @@ def make_options(
     )
 
 
-ModelPass = Callable[[emit.EmitResult], emit.EmitResult]
+ModelPass = Callable[[Document], Document]
 """A pass on the MJCF document in memory, after ``extension`` and before it is written
 and validated (the facility's fold and tags): it returns a new result, changing a copy
-(:meth:`~urdf2mjcf.passes.emit.EmitResult.edit`) where it changes anything."""
+(:meth:`~urdf2mjcf.mjcf.document.Document.edit`) where it changes anything."""
 
 
-def build(source: str | Path, options: ConvertOptions) -> tuple[Model, emit.EmitResult]:
+def build(source: str | Path, options: ConvertOptions) -> tuple[Model, Document]:
     """Run the passes up to ``extension`` in memory: no file is written. The result holds
     the MJCF document as an element tree (``result.root``; ``result.xml``: as written)."""
-    _doc, model, result = _build(source, options, mjmodel.HomeCompiles())
+    _doc, model, result = _build(source, options, mjcf_compile.HomeCompiles())
     return model, result
 
 
 def _build(
-    source: str | Path, options: ConvertOptions, compiles: mjmodel.HomeCompiles
-) -> tuple[UrdfDocument, Model, emit.EmitResult]:
+    source: str | Path, options: ConvertOptions, compiles: mjcf_compile.HomeCompiles
+) -> tuple[UrdfDocument, Model, Document]:
     """:func:`build`, and the xacro pass's document (the certificate's reference reads it).
     ``compiles``: the conversion's compile that the scene pass may reuse."""
-    mjmodel.make_room()  # before the first compile of this conversion
+    mjcf_compile.make_room()  # before the first compile of this conversion
     doc = xacro.run(Path(source), options.xacro)
     model = parse.run(doc, options.parse)
     model = meshes.run(model, options.meshes)
     model = collision.run(model, options.collision)
     model = inertia.run(model, options.inertia)
-    model = actuators.run(model, options.actuators, compiles)
+    model = actuators.run(model, options.actuators, _robot_tree, compiles)
     model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
@@ -208,6 +208,11 @@ def _build(
 
         result = calibrated(result, options.calibration)
     return doc, replace(model, notes=model.notes + result.notes), result
+
+
+def _robot_tree(model: Model, floating_base: bool) -> Document:
+    """The robot as emit writes it, which the actuators pass compiles to size gains."""
+    return emit.run(model, emit.EmitConfig(floating_base=floating_base))
 
 
 def convert(
@@ -241,7 +246,7 @@ def convert(
         )
     out.check_target(output, options.overwrite, (scene_name,) if options.scene else ())
 
-    compiles = mjmodel.HomeCompiles()
+    compiles = mjcf_compile.HomeCompiles()
     doc, model, result = _build(source, options, compiles)
     for step in model_passes:
         result = step(result)
@@ -309,7 +314,7 @@ def _certificate(
     files: list[str],
     cfg: CertifyConfig,
     compiled: Any = None,
-    passive: mjmodel.PassiveRun | None = None,
+    passive: mjcf_compile.PassiveRun | None = None,
 ) -> Certificate:
     """The certificate of the staged robot file against the description ``doc``.
 

@@ -247,7 +247,7 @@ def run_batch(
 # -- the command -------------------------------------------------------------------------
 
 
-def _options(kw: dict[str, Any]) -> dict[str, Any]:
+def conversion_options(kw: dict[str, Any]) -> dict[str, Any]:
     """The converter's click values -> keyword options of ``api.make_options``."""
     return {
         "package_paths": list(kw["package_path"]),
@@ -311,7 +311,7 @@ def _batch(
     summary = run_batch(
         paths,
         output,
-        _options(converter),
+        conversion_options(converter),
         executor=executor,
         workers=workers,
         address=address,
@@ -372,7 +372,7 @@ def _make_command() -> click.Command:
         *shared_params(),  # the converter's options that apply to every robot
     ]
     return click.Command(
-        "urdf2mjcf batch",
+        "batch",
         callback=_batch,
         params=params,
         help=_batch.__doc__,

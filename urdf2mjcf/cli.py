@@ -69,7 +69,7 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
             click.echo(line, err=True)
 
 
-@click.command("urdf2mjcf", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("convert", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")
 @click.option(
@@ -197,10 +197,9 @@ def urdf2mjcf_command(
 
     xacro arguments are given as NAME:=VALUE, exactly as with ROS.
 
-    Many robots into one tree: 'urdf2mjcf batch PATHS... -o OUT' (see its --help).
-    The cache: 'urdf2mjcf cache info|clear'. Any model against its description:
-    'urdf2mjcf verify SOURCE MODEL.xml' (see its --help). A model served live to
-    ROS 2: 'urdf2mjcf serve MODEL.xml --ros2' (see its --help).
+    'urdf2mjcf SOURCE ...' (without 'convert') does the same. The other sub-commands
+    ('urdf2mjcf --help' lists them): batch, verify, view, cache, serve, excite,
+    calibrate.
     """
     from . import api  # keep `--help` fast
     from . import output as out
@@ -300,7 +299,7 @@ def _view(
     conversion that fails on the way prints its error: line and the viewer keeps the
     last good model. See docs/viewing.md."""
     from . import api
-    from .batch import _options as conversion_options  # the converter's options, as batch
+    from .batch import conversion_options  # the converter's options, as batch
     from .cache import default_cache_dir
     from .view.watch import serve
 
@@ -336,7 +335,7 @@ def _view(
 
 
 view_command = click.Command(
-    "urdf2mjcf view",
+    "view",
     callback=_view,
     params=[
         click.Argument(["source"], type=click.Path(path_type=Path, dir_okay=False)),
@@ -363,40 +362,62 @@ view_command = click.Command(
 )
 
 
+COMMANDS: dict[str, tuple[str, str, str | None]] = {
+    "convert": ("urdf2mjcf.cli", "urdf2mjcf_command", None),
+    "batch": ("urdf2mjcf.batch", "batch_command", None),
+    "verify": ("urdf2mjcf.certify.command", "verify_command", None),
+    "view": ("urdf2mjcf.cli", "view_command", None),
+    "cache": ("urdf2mjcf.cli", "cache_group", None),
+    "serve": ("urdf2mjcf.ros2.command", "serve_command", None),
+    "excite": ("urdf2mjcf.calibrate.command", "excite_command", None),
+    "calibrate": ("urdf2mjcf.calibrate.command", "calibrate_command", "calibrate"),
+}
+"""``urdf2mjcf``'s sub-commands: name -> (module, command, the extra it needs). Each is
+imported when it runs, so that ``--help`` and a conversion import none of the others."""
+
+
+class _Commands(click.Group):
+    """The sub-commands of :data:`COMMANDS`. A first argument that names none is a
+    conversion's: ``urdf2mjcf SOURCE ...`` is ``urdf2mjcf convert SOURCE ...``, the
+    spelling from before sub-commands, which keeps working (a SOURCE file named like a
+    sub-command is given as ``./NAME``)."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        import importlib
+
+        from .command_runner import with_debug_option
+
+        module, name, extra = COMMANDS[cmd_name]
+        command = getattr(importlib.import_module(module), name)
+        if extra is not None:
+            command = extras.requiring(extra, command)
+        return with_debug_option(command)
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if not args or (args[0] not in COMMANDS and args[0] not in ctx.help_option_names):
+            args = ["convert", *args]  # the short spelling of a conversion
+        return super().parse_args(ctx, args)
+
+
+urdf2mjcf_group = _Commands(
+    "urdf2mjcf",
+    help="""Convert robot descriptions into MuJoCo MJCF, check, show, serve and calibrate
+    the result.
+
+    'urdf2mjcf SOURCE [NAME:=VALUE]... -o OUT.xml' is short for 'urdf2mjcf convert ...'
+    (the spelling from before sub-commands; it keeps working). Each sub-command's --help
+    says what it takes.""",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
 def urdf2mjcf_main() -> None:
-    # `urdf2mjcf cache ...` manages the cache, `urdf2mjcf batch ...` converts many robots,
-    # `urdf2mjcf verify ...` certifies a model, `urdf2mjcf view ...` shows one,
-    # `urdf2mjcf serve ...` serves one to ROS 2, `urdf2mjcf calibrate ...` fits one to a
-    # robot's logs, `urdf2mjcf excite ...` writes a trajectory to log them with; anything
-    # else is a conversion, whose first argument is the SOURCE file (a file named 'cache',
-    # 'batch', 'verify', 'view', 'serve', 'calibrate' or 'excite' is given as ./NAME).
-    args = sys.argv[1:]
-    if args[:1] == ["view"]:
-        run_command(view_command, args[1:], prog_name="urdf2mjcf view")
-    if args[:1] == ["cache"]:
-        run_command(cache_group, args[1:], prog_name="urdf2mjcf cache")
-    if args[:1] == ["batch"]:
-        from .batch import batch_command
-
-        run_command(batch_command, args[1:], prog_name="urdf2mjcf batch")
-    if args[:1] == ["serve"]:
-        from .ros2.command import serve_command
-
-        run_command(serve_command, args[1:], prog_name="urdf2mjcf serve")
-    if args[:1] == ["verify"]:
-        from .certify.command import verify_command
-
-        run_command(verify_command, args[1:], prog_name="urdf2mjcf verify")
-    if args[:1] == ["excite"]:
-        from .calibrate.command import excite_command
-
-        run_command(excite_command, args[1:], prog_name="urdf2mjcf excite")
-    if args[:1] == ["calibrate"]:
-        from .calibrate.command import calibrate_command
-
-        checked = extras.requiring("calibrate", calibrate_command)
-        run_command(checked, args[1:], prog_name="urdf2mjcf calibrate")
-    run_command(urdf2mjcf_command)
+    run_command(urdf2mjcf_group)
 
 
 _CACHE_DIR_OPTION = click.option(
@@ -424,7 +445,7 @@ def _mb(n: int) -> str:
     return f"{n / 2**20:.1f} MB"
 
 
-@click.group("urdf2mjcf cache", context_settings={"help_option_names": ["-h", "--help"]})
+@click.group("cache", context_settings={"help_option_names": ["-h", "--help"]})
 def cache_group() -> None:
     """Show or empty the cache of loaded meshes and convex decompositions.
 

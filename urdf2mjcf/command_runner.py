@@ -35,6 +35,15 @@ def _one_line(text: str) -> str:
     return line if len(line) <= ERROR_LINE_MAX else line[: ERROR_LINE_MAX - 3] + "..."
 
 
+def with_debug_option(command: click.Command) -> click.Command:
+    """``command`` (and a group's sub-commands) taking ``--debug``, which run_command reads."""
+    _add_debug_option(command)
+    if isinstance(command, click.Group):  # `urdf2mjcf cache info --debug`
+        for sub in command.commands.values():
+            _add_debug_option(sub)
+    return command
+
+
 def _add_debug_option(command: click.Command) -> None:
     if not any(p.name == "debug" for p in command.params):
         command.params.append(
@@ -57,10 +66,7 @@ def run_command(
     (exit code 1). ``--debug`` prints the traceback as well.
     """
     headless.configure()  # before anything imports mujoco: cameras render without a display
-    _add_debug_option(command)
-    if isinstance(command, click.Group):  # `urdf2mjcf cache info --debug`
-        for sub in command.commands.values():
-            _add_debug_option(sub)
+    with_debug_option(command)
     debug = "--debug" in (sys.argv[1:] if args is None else args)
     sigterm = _terminate_cleanly()
     try:
@@ -93,7 +99,8 @@ def run_command(
         click.echo("error: aborted", err=True)
         sys.exit(2)
     except click.UsageError as exc:
-        hint = f" (see '{command.name} --help')"
+        path = exc.ctx.command_path if exc.ctx is not None else command.name
+        hint = f" (see '{path} --help')"  # the sub-command's help: `urdf2mjcf batch --help`
         click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
         sys.exit(2)
     except click.ClickException as exc:

@@ -68,7 +68,8 @@ def requiring(extra: str, command: click.Command) -> click.Command:
 
     @functools.wraps(body)
     def checked(*args: Any, **kwargs: Any) -> Any:
-        require(extra, command.name or "this command")
+        ctx = click.get_current_context(silent=True)
+        require(extra, ctx.command_path if ctx is not None else command.name or "this command")
         return body(*args, **kwargs)
 
     wrapped = copy.copy(command)

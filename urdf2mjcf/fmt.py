@@ -1,4 +1,5 @@
-"""The one float formatter and the one MJCF writer used for everything we write.
+"""The one float formatter used for everything we write (the one writer of MJCF text is
+:func:`urdf2mjcf.mjcf.document.mjcf_bytes`).
 
 Python's ``repr`` gives the shortest text that round-trips a double, so link
 frames survive the trip through XML exactly (MuJoCo's own writer keeps 6
@@ -39,11 +40,3 @@ def set_attrs(el: etree._Element, **attrs: object) -> etree._Element:
         else:
             el.set(key, fmt_vec(value))  # type: ignore[arg-type]
     return el
-
-
-def mjcf_bytes(root: etree._Element) -> bytes:
-    """The one writer of our MJCF documents: ``root`` indented two spaces, UTF-8, no
-    declaration, a final newline. Whatever whitespace a pass left in the tree, the
-    same elements give the same bytes (only whitespace of ``root`` is changed)."""
-    etree.indent(root, space="  ")
-    return etree.tostring(root, encoding="utf-8", xml_declaration=False) + b"\n"

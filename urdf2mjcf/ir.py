@@ -255,6 +255,17 @@ class Joint:
     mimic: Mimic | None = None
     """The ``<mimic>`` (one naming a missing joint is dropped); None when absent."""
 
+    @property
+    def range(self) -> tuple[float, float] | None:
+        """(lower, upper) MuJoCo limits the joint to: a revolute or prismatic joint's
+        ``<limit>``, a missing end read as 0 as urdfdom reads it. None: unlimited (no
+        limit, another type, or no range: lower == upper, or lower > upper, which
+        urdfdom reads as unlimited too)."""
+        if self.type not in ("revolute", "prismatic") or self.limit is None:
+            return None
+        lo, hi = self.limit.lower or 0.0, self.limit.upper or 0.0
+        return (lo, hi) if lo < hi else None
+
 
 @dataclass(frozen=True)
 class Extension:

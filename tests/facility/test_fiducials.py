@@ -20,7 +20,7 @@ from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility import fiducials
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe, parse_recipe
-from urdf2mjcf.fmt import mjcf_bytes
+from urdf2mjcf.mjcf.document import mjcf_bytes
 from urdf2mjcf.schema import load
 from urdf2mjcf.transforms import rpy_to_matrix
 

@@ -27,7 +27,7 @@ from tests.facility.test_collision_filtering import (
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.fold import fold_fixtures
 from urdf2mjcf.facility.recipe import load_recipe
-from urdf2mjcf.fmt import mjcf_bytes
+from urdf2mjcf.mjcf.document import mjcf_bytes
 from urdf2mjcf.runner.load import load as load_facility
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -15,6 +15,11 @@ from urdf2mjcf.ir import Model
 from urdf2mjcf.passes import collision, emit, inertia, meshes, parse, xacro
 from urdf2mjcf.passes.actuators import ActuatorConfig, run
 
+
+def robot_tree(model: Model, floating_base: bool):
+    """Emit's document, as the pipeline hands it to the actuators pass."""
+    return emit.run(model, emit.EmitConfig(floating_base=floating_base))
+
 THETA_TOL = ActuatorConfig().sag_tolerance
 
 
@@ -134,7 +139,7 @@ def convert(tmp_path: Path, urdf: str, yaml_text: str | None = None, **cfg) -> M
     if yaml_text is not None:
         cfg["config_file"] = tmp_path / "actuators.yaml"
         cfg["config_file"].write_text(yaml_text)
-    return run(upstream(tmp_path, urdf), ActuatorConfig(**cfg))
+    return run(upstream(tmp_path, urdf), ActuatorConfig(**cfg), robot_tree)
 
 
 def compile_model(model: Model) -> tuple[mujoco.MjModel, mujoco.MjData, str]:
@@ -608,5 +613,5 @@ def test_velocity_actuator_tracks_a_commanded_velocity(tmp_path):
 
 def test_robot_without_control_tags_or_options_is_returned_unchanged(tmp_path):
     model = upstream(tmp_path, two_link_arm())
-    assert run(model, ActuatorConfig()) is model
+    assert run(model, ActuatorConfig(), robot_tree) is model
     assert compile_model(model)[0].nu == 0

@@ -18,6 +18,7 @@ from lxml import etree
 
 from urdf2mjcf.errors import MeshError, PackageNotFoundError, URDFError, ValidationError
 from urdf2mjcf.ir import Extension
+from urdf2mjcf.mjcf.document import SECTIONS, Document
 from urdf2mjcf.passes import (
     collision,
     emit,
@@ -28,7 +29,7 @@ from urdf2mjcf.passes import (
     validate,
     xacro,
 )
-from urdf2mjcf.passes.extension import SECTIONS, ExtensionConfig
+from urdf2mjcf.passes.extension import ExtensionConfig
 
 DATA = Path(__file__).parents[1] / "data"
 BOX_STL = DATA / "meshes" / "box.stl"
@@ -76,11 +77,11 @@ def convert(tmp_path: Path, mujoco_xml: str, *, check: bool = True, **xacro_cfg)
     return before, extension.run(before, model, cfg)
 
 
-def compiled(result: emit.EmitResult) -> mujoco.MjModel:
+def compiled(result: Document) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(result.xml.decode(), dict(result.files))
 
 
-def root(result: emit.EmitResult) -> etree._Element:
+def root(result: Document) -> etree._Element:
     return etree.fromstring(result.xml)
 
 
@@ -552,7 +553,7 @@ def test_misspelt_attribute_is_reported_against_the_override(tmp_path):
     )
 
 
-def _warned(result: emit.EmitResult, needle: str) -> list[str]:
+def _warned(result: Document, needle: str) -> list[str]:
     return [f"{n.element}: {n.message}" for n in result.notes if n.kind == "warning" and needle in n.message]
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from urdf2mjcf.errors import ValidationError
-from urdf2mjcf.mjmodel import home_data
+from urdf2mjcf.mjcf.compile import home_data
 from urdf2mjcf.passes import validate
 from urdf2mjcf.passes.validate import ValidateConfig, _physics_files
 

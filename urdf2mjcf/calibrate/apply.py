@@ -31,7 +31,7 @@ from .. import schema
 from ..errors import InputError
 from ..fmt import fmt_float, fmt_vec
 from ..ir import Note
-from ..passes.emit import EmitResult
+from ..mjcf.document import Document
 
 log = logging.getLogger(__name__)
 
@@ -124,7 +124,7 @@ def _number(value: Any, keys: tuple[str, ...], key: Any, path: Path, where: str)
     return float(value)
 
 
-def calibrated(result: EmitResult, path: Path) -> EmitResult:
+def calibrated(result: Document, path: Path) -> Document:
     """The converter's step (``--calibration FILE``): ``result`` with the file's values
     written into a copy of its document, a warning note for each name it lacks."""
     calib = load(path)

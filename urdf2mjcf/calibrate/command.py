@@ -23,7 +23,7 @@ from .report import improvement
 from .run import GENERATOR, CalibrateConfig, calibrate
 
 
-@click.command("urdf2mjcf calibrate", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("calibrate", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("logs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option(
@@ -119,7 +119,7 @@ def calibrate_command(
         )
 
 
-@click.command("urdf2mjcf excite", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("excite", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("model", type=click.Path(path_type=Path, dir_okay=False))
 @click.option(
     "-o",

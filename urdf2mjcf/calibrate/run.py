@@ -17,7 +17,7 @@ from lxml import etree
 
 from .. import mjcf_files
 from ..errors import InputError
-from ..fmt import mjcf_bytes
+from ..mjcf.document import mjcf_bytes
 from . import apply as calib_apply
 from . import fit as fitting
 from . import logs, params, report

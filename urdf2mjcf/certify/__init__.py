@@ -32,7 +32,7 @@ from typing import Any
 
 from ..errors import CertificateFailed, ConversionError
 from ..ir import Model, Note
-from ..mjmodel import PassiveRun
+from ..mjcf.compile import PassiveRun
 from .kinematics import NameMap
 from .reference import Reference
 from .tolerances import Tolerances
@@ -295,7 +295,7 @@ def certify(
     """
     import copy
 
-    from ..mjmodel import home_data, start_passive_second, warnings_into
+    from ..mjcf.compile import home_data, start_passive_second, warnings_into
 
     # MuJoCo's warnings are not figures: kept from its default handler (a log file)
     with warnings_into([]):
@@ -419,7 +419,7 @@ def _checks(
     cache_root: Path | None,
     passive: Future[PassiveRun],
 ) -> tuple[dict[str, Any], list[str]]:
-    from ..mjmodel import home_data
+    from ..mjcf.compile import home_data
     from .checks import lint_section
 
     return _section(
@@ -456,7 +456,7 @@ def compile_written(xml_path: Path, files: Iterable[str]) -> Any:
     """``mujoco.MjModel`` of the written ``xml_path``: every file named in ``files``
     (relative to its folder) read back from disk and compiled as MuJoCo opens it."""
     from ..errors import ValidationError
-    from ..mjmodel import compile_xml
+    from ..mjcf.compile import compile_xml
 
     folder = xml_path.parent
     written = {name: (folder / name).read_bytes() for name in files}

@@ -36,7 +36,7 @@ the inertia and passive-energy checks: what they flag can be the description's o
     (measured when ``model_path`` is given).
 ``passive_energy``
     From home, actuation disabled, one second of simulation (at most
-    ``mjmodel.MAX_PASSIVE_STEPS`` steps) with MuJoCo's energy enabled: kinetic plus potential
+    ``mjcf.compile.MAX_PASSIVE_STEPS`` steps) with MuJoCo's energy enabled: kinetic plus potential
     energy never exceeds its start by more than ``energy_growth`` of the
     robot's energy scale (total mass x gravity x model extent) plus 1 mJ.
     Gravity, damping and contacts only take energy away.
@@ -69,7 +69,7 @@ if TYPE_CHECKING:
     import mujoco
     import trimesh
 
-    from ..mjmodel import PassiveRun
+    from ..mjcf.compile import PassiveRun
     from .reference import Reference
 
 log = logging.getLogger(__name__)
@@ -266,7 +266,7 @@ def home_data(m: mujoco.MjModel, d_home: mujoco.MjData | None) -> mujoco.MjData:
     """A fresh MjData at home, forward-computed (the caller's data is left alone)."""
     import mujoco
 
-    from ..mjmodel import data_from
+    from ..mjcf.compile import data_from
 
     if d_home is not None:
         d = data_from(m, d_home)
@@ -625,7 +625,7 @@ def check_energy(
 ) -> tuple[dict[str, Any], list[str]]:
     """``run``: the passive second from the same home, stepped elsewhere (on a model
     of the same robot); None: stepped here."""
-    from ..mjmodel import passive_second, warnings_into
+    from ..mjcf.compile import passive_second, warnings_into
 
     if run is None:
         with warnings_into([]):  # a divergence is in the figures

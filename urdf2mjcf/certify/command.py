@@ -81,7 +81,7 @@ def load_model(path: Path) -> Any:
     return load_untrusted(path, error=InputError, what="model")
 
 
-@click.command("urdf2mjcf verify", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("verify", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("model", required=False, type=click.Path(path_type=Path, dir_okay=False))
 @click.argument("xacro_args", nargs=-1, metavar="[NAME:=VALUE]...")

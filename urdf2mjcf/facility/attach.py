@@ -38,8 +38,8 @@ from lxml import etree
 from ..errors import InputError
 from ..fmt import fmt_vec
 from ..ir import Quat
-from ..passes.emit import EmitResult
-from ..passes.extension import joint_qpos0, joint_width, joints, section
+from ..mjcf.document import Document, section
+from ..mjcf.joints import joint_qpos0, joint_width, joints
 from ..transforms import canonical_quat, quat_mul, quat_to_matrix
 
 APPENDED = ("contact", "equality", "tendon", "actuator", "sensor")
@@ -58,7 +58,7 @@ class Part:
 
     name: str
     """The component's name in the recipe (errors name it)."""
-    result: EmitResult
+    result: Document
     pos: tuple[float, float, float]
     quat: tuple[float, float, float, float]
     """w x y z."""
@@ -137,7 +137,7 @@ class Attach:
     attached: list[str] = field(default_factory=list)
     """The components attached, in order (after the pass has run)."""
 
-    def __call__(self, scene: EmitResult) -> EmitResult:
+    def __call__(self, scene: Document) -> Document:
         if not self.parts:
             return scene
         root = scene.edit()

@@ -31,7 +31,7 @@ from .. import output as out
 from .. import report as conversion_report
 from ..calibrate import apply as calib_apply
 from ..errors import ForgeError, InputError
-from ..passes.emit import EmitResult
+from ..mjcf.document import Document
 from . import attach, fiducials, fold
 from .jitter import jittered
 from .manifest import GENERATOR, MANIFEST, manifest, write_manifest
@@ -321,9 +321,9 @@ def _component_file(table: Mapping[str, Component], present: list[str], name: st
 class _Keep:
     """The last pass of a component's conversion: keeps the document it writes."""
 
-    result: EmitResult | None = None
+    result: Document | None = None
 
-    def __call__(self, result: EmitResult) -> EmitResult:
+    def __call__(self, result: Document) -> Document:
         self.result = result
         return result
 

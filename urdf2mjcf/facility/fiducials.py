@@ -38,7 +38,7 @@ from ..assets import content_name
 from ..errors import InputError
 from ..fmt import fmt_vec
 from ..limits import TAG_COUNT, TAG_FAMILY
-from ..passes.emit import EmitResult
+from ..mjcf.document import Document
 from ..transforms import quat_from_rpy, rpy_to_matrix
 from ..untrusted import excerpt
 from .pose import Pose2D
@@ -186,7 +186,7 @@ class Tags:
         self.recipe = recipe
         self.placed: list[tuple[str, str, Fiducial]] = []
 
-    def __call__(self, result: EmitResult) -> EmitResult:
+    def __call__(self, result: Document) -> Document:
         if not self.tags:
             return result
         root = result.edit()

@@ -32,8 +32,8 @@ import numpy as np
 
 from ..errors import ValidationError
 from ..fmt import fmt_vec
-from ..mjmodel import compile_home
-from ..passes.emit import EmitResult
+from ..mjcf.compile import compile_home
+from ..mjcf.document import Document
 
 MANIFEST_KEY = "folded_geoms"
 _ORIENTATIONS = ("euler", "axisangle", "xyaxes", "zaxis", "fromto")
@@ -144,7 +144,7 @@ class Fold:
         """Named by the error when MuJoCo rejects the model (a --set path to a file that
         is no height field, say)."""
 
-    def __call__(self, result: EmitResult) -> EmitResult:
+    def __call__(self, result: Document) -> Document:
         try:
             m, _ = compile_home(result.root, result.files)
         except ValueError as exc:  # MuJoCo's: bad input, not a bug of ours

@@ -46,13 +46,12 @@ import numpy as np
 from lxml import etree
 
 from ..ir import Box, Capsule, Cylinder, Link, MeshRef, Model, Note, Sphere
-from ..mjmodel import HomeCompiles, compile_home
+from ..mjcf.compile import HomeCompiles, compile_home
+from ..mjcf.document import Document, section
 from ..solids import PENETRATION_M, Hull, Placed, Primitive, geom_solid, overlap_depth
 from ..transforms import pose_matrix
 from . import collision
 from .actuators import config as actuator_file
-from .emit import EmitResult
-from .extension import section
 
 log = logging.getLogger(__name__)
 
@@ -96,8 +95,8 @@ def keeps(model: Model, cfg: ContactsConfig) -> bool:
 
 
 def run(
-    result: EmitResult, model: Model, cfg: ContactsConfig, compiles: HomeCompiles | None = None
-) -> EmitResult:
+    result: Document, model: Model, cfg: ContactsConfig, compiles: HomeCompiles | None = None
+) -> Document:
     """``result`` with an ``<exclude>`` for each contact the conversion created (see the
     module), and a note for each."""
     if keeps(model, cfg) or not any(model.collision_geoms.values()):

@@ -1,8 +1,9 @@
 """The emit pass: :class:`~urdf2mjcf.ir.Model` -> an MJCF document in MuJoCo Menagerie's style.
 
-The document stays in memory as an element tree (:class:`EmitResult`): the passes
-after this one (extension, scene, the facility's fold and tags) change a copy of
-it, and it becomes text once, when it is written (:func:`urdf2mjcf.fmt.mjcf_bytes`).
+The document stays in memory as an element tree (:class:`~urdf2mjcf.mjcf.document.
+Document`): the passes after this one (extension, scene, the facility's fold and tags)
+change a copy of it, and it becomes text once, when it is written
+(:func:`urdf2mjcf.mjcf.document.mjcf_bytes`).
 
 Every URDF link becomes a body of the same name and every joint keeps its
 name (fixed links are kept unless ``fuse_fixed``). A root link named
@@ -12,20 +13,18 @@ doubles round-trip; the output is a pure function of the model.
 
 from __future__ import annotations
 
-import copy
-import functools
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
 from lxml import etree
 
 from ..errors import ValidationError
-from ..fmt import mjcf_bytes, set_attrs
+from ..fmt import set_attrs
 from ..ir import Actuator, BodyInertial, Camera, Geom, Joint, Link, Model, Note, Quat, Site, Vec3
+from ..mjcf.document import Document
 from ..transforms import (
     IDENTITY_QUAT,
     mujoco_fullinertia,
@@ -36,6 +35,9 @@ from ..transforms import (
 )
 
 log = logging.getLogger(__name__)
+
+EmitResult = Document
+"""The document's old name (before ``urdf2mjcf.mjcf``), kept for a release."""
 
 _Placed = TypeVar("_Placed", Geom, Site, Camera)
 
@@ -60,27 +62,6 @@ class EmitConfig:
     mimic_solref: tuple[float, float] = (0.005, 1.0)
     """Stiff equality so mimic followers track their leader closely."""
     mimic_solimp: tuple[float, float, float] = (0.95, 0.99, 0.001)
-
-
-@dataclass(frozen=True)
-class EmitResult:
-    root: etree._Element
-    """The robot MJCF document (``<mujoco>``), in memory. Never changed once made: a
-    pass that changes the document works on a copy (:meth:`edit`) and returns a new
-    result."""
-    files: dict[str, bytes]
-    """Asset files by path relative to the MJCF file (``assets/<name>``)."""
-    qpos_home: tuple[float, ...]
-    notes: tuple[Note, ...] = ()
-
-    @functools.cached_property
-    def xml(self) -> bytes:
-        """The document as it is written: our one writer's bytes."""
-        return mjcf_bytes(self.root)
-
-    def edit(self) -> etree._Element:
-        """A copy of the document for a pass to change."""
-        return copy.deepcopy(self.root)
 
 
 # -- body tree ---------------------------------------------------------------
@@ -278,23 +259,19 @@ def _pose_attrs(pos: Vec3, quat: Quat) -> dict[str, object]:
     }
 
 
-def _limits(joint: Joint, robot_source: Path, notes: list[Note]) -> tuple[float, float] | None:
-    if joint.type not in ("revolute", "prismatic") or joint.limit is None:
-        return None
-    lo, hi = joint.limit.lower, joint.limit.upper
-    if lo is None and hi is None or lo == hi:
-        notes.append(
-            Note(
-                "warning",
-                f"joint '{joint.name}'",
-                "limit has no range (lower == upper); joint left unlimited",
+def _limits(joint: Joint, notes: list[Note]) -> tuple[float, float] | None:
+    limit = joint.limit
+    if joint.range is None and limit is not None and joint.type in ("revolute", "prismatic"):
+        if (limit.lower or 0.0) == (limit.upper or 0.0):
+            notes.append(
+                Note(
+                    "warning",
+                    f"joint '{joint.name}'",
+                    "limit has no range (lower == upper); joint left unlimited",
+                )
             )
-        )
-        return None
-    lo, hi = lo or 0.0, hi or 0.0
-    if lo > hi:
-        return None  # unlimited, as urdfdom reads it; parse has warned (or failed, --strict)
-    return lo, hi
+        # lower > upper: unlimited, as urdfdom reads it; parse has warned (or failed, --strict)
+    return joint.range
 
 
 def _joint_elements(
@@ -323,7 +300,7 @@ def _joint_elements(
         if tuning.frictionloss is not None:
             common["frictionloss"] = tuning.frictionloss or None
     if joint.type in ("revolute", "continuous", "prismatic"):
-        rng = _limits(joint, model.robot.source, notes)
+        rng = _limits(joint, notes)
         el = etree.SubElement(body_el, "joint")
         set_attrs(el, name=joint.name)
         if joint.type == "prismatic":
@@ -578,7 +555,7 @@ def _check_depth(world: _Body, model: Model, cfg: EmitConfig) -> None:
     )
 
 
-def run(model: Model, cfg: EmitConfig) -> EmitResult:
+def run(model: Model, cfg: EmitConfig) -> Document:
     robot = model.robot
     notes: list[Note] = []
     tree = _build_tree(model, cfg)
@@ -699,4 +676,4 @@ def run(model: Model, cfg: EmitConfig) -> EmitResult:
             ctrl = [at.get(a.joint, 0.0) if a.kind == "position" else 0.0 for a in model.actuators]
             set_attrs(key, ctrl=ctrl)
 
-    return EmitResult(root=mj, files=files, qpos_home=qpos, notes=tuple(notes))
+    return Document(root=mj, files=files, qpos_home=qpos, notes=tuple(notes))

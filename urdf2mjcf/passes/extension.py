@@ -42,32 +42,14 @@ from lxml import etree
 from .. import untrusted
 from ..assets import content_name
 from ..errors import MeshError, URDFError
-from ..fmt import fmt_vec
 from ..ir import Model, Note
+from ..mjcf import joints as mjcf_joints
+from ..mjcf.compile import LOCK
+from ..mjcf.document import SECTIONS, Document, section
 from ..packages import PackageResolver
-from .emit import EmitResult
 from .meshes import LFS_MAGIC
 
 log = logging.getLogger(__name__)
-
-SECTIONS = (
-    "compiler",
-    "option",
-    "size",
-    "visual",
-    "statistic",
-    "default",
-    "asset",
-    "worldbody",
-    "contact",
-    "equality",
-    "tendon",
-    "actuator",
-    "sensor",
-    "custom",
-    "keyframe",
-)
-"""Top-level MJCF sections in the order emit (and Menagerie) writes them."""
 
 MERGED = ("compiler", "option", "size", "visual", "statistic")
 """Singleton sections: attributes merged, child elements merged by tag."""
@@ -199,22 +181,7 @@ class _Context:
         return self.section("worldbody")
 
 
-def section(root: etree._Element, tag: str) -> etree._Element:
-    """The top-level section ``tag`` of ``root``, created in Menagerie's order if missing."""
-    found = root.find(tag)
-    if found is not None:
-        return found
-    el = etree.Element(tag)
-    rank = SECTIONS.index(tag)
-    for existing in root:
-        if existing.tag in SECTIONS and SECTIONS.index(existing.tag) > rank:
-            existing.addprevious(el)
-            return el
-    root.append(el)
-    return el
-
-
-def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
+def run(result: Document, model: Model, cfg: ExtensionConfig) -> Document:
     extensions = [e for e in model.robot.extensions if e.tag == "mujoco"]
     if not cfg.enabled or not extensions:
         return result
@@ -228,7 +195,7 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
         notes=[],
         assembly=cfg.assembly,
     )
-    layout = _joint_layout(root)
+    layout = mjcf_joints.layout(root)
     owned = {key: key.get("qpos") for key in root.iterfind("keyframe/key")}
     for ext in extensions:
         _apply(ctx, ext.xml)
@@ -236,7 +203,7 @@ def run(result: EmitResult, model: Model, cfg: ExtensionConfig) -> EmitResult:
     if not ctx.assembly:  # an assembled world names the bodies of parts attached later
         _follow_merges(ctx)
     keys = [k for k, q in owned.items() if q is not None and k.get("qpos") == q and _attached(k)]
-    if cfg.check or (keys and _joint_layout(root) != layout):
+    if cfg.check or (keys and mjcf_joints.layout(root) != layout):
         _compile(ctx, keys, layout, assembly=cfg.assembly)
 
     return replace(
@@ -258,8 +225,14 @@ REFERENCES: dict[str, tuple[str, ...]] = {
     "tendon": ("tendon", "tendon1", "tendon2"),
 }
 """Attributes that name a model element of a kind (MJCF's; ``objname`` by ``objtype``)."""
-OBJTYPES = {"body": "body", "xbody": "body", "site": "site", "joint": "joint", "geom": "geom",
-            "tendon": "tendon"}
+OBJTYPES = {
+    "body": "body",
+    "xbody": "body",
+    "site": "site",
+    "joint": "joint",
+    "geom": "geom",
+    "tendon": "tendon",
+}
 
 
 def _references(el: etree._Element) -> list[tuple[str, str]]:
@@ -788,74 +761,14 @@ def _attached(el: etree._Element) -> bool:
     return el.getparent() is not None
 
 
-def _kind(joint: etree._Element) -> str:
-    return "free" if joint.tag == "freejoint" else joint.get("type", "hinge")
-
-
-def joint_width(joint: etree._Element) -> int:
-    """Numbers of ``qpos`` a ``<joint>`` or ``<freejoint>`` takes."""
-    return {"free": 7, "ball": 4}.get(_kind(joint), 1)
-
-
-def joint_qpos0(joint: etree._Element) -> list[float]:
-    """Where MuJoCo starts a joint given by pos and quat: a free joint at its body's pose,
-    a ball at identity, a hinge or slide at its ``ref``."""
-    kind = _kind(joint)
-    if kind == "free":
-        body = joint.getparent()
-        assert body is not None
-        pose = body.get("pos", "0 0 0").split() + body.get("quat", "1 0 0 0").split()
-        return [float(v) for v in pose]
-    if kind == "ball":
-        return [1.0, 0.0, 0.0, 0.0]
-    return [float(joint.get("ref", "0"))]
-
-
-def joints(root: etree._Element) -> list[etree._Element]:
-    """Every joint of the world body in document order (MuJoCo's order for our output)."""
-    world = root.find("worldbody")
-    return [] if world is None else list(world.iter("joint", "freejoint"))
-
-
-def _joint_layout(root: etree._Element) -> list[tuple[str | None, int]]:
-    """(name, qpos width) of each joint in document order (MuJoCo's order for emit's output)."""
-    return [(el.get("name"), joint_width(el)) for el in joints(root)]
-
-
-def _repad(
-    keys: list[etree._Element], layout: list, starts: list[tuple[str | None, list[float]]]
-) -> None:
-    """Re-pad ``keys``, written for the joints of ``layout``, to the joints ``starts``
-    (name, where it starts) now has: a joint of ``layout`` keeps its values, an added
-    one gets its start."""
-    widths = dict(layout)
-    for key in keys:
-        values = [float(x) for x in (key.get("qpos") or "").split()]
-        if len(values) != sum(widths.values()) or len(widths) != len(layout):
-            continue
-        old: dict[str | None, list[float]] = {}
-        pos = 0
-        for name, width in layout:
-            old[name] = values[pos : pos + width]
-            pos += width
-        new: list[float] = []
-        for name, start in starts:
-            kept = old.get(name)
-            new += kept if kept is not None and len(kept) == len(start) else start
-        if new != values:
-            key.set("qpos", fmt_vec(new))
-
-
 def _compile(
     ctx: _Context, keys: list[etree._Element], layout: list, *, assembly: bool = False
 ) -> None:
     """Compile the merged model without our keyframes; blame ``<mujoco>`` content for
     an error in it; re-pad our keyframes when joints were added. ``assembly``: an
     error is not blamed (parts are attached later) and keys are re-padded from the
-    document's poses (:func:`joint_qpos0`)."""
+    document's poses (:func:`~urdf2mjcf.mjcf.joints.joint_qpos0`)."""
     import mujoco
-
-    from .validate import _LOCK
 
     places = [(k, k.getparent(), k.getparent().index(k)) for k in keys]  # type: ignore[union-attr]
     for key, parent, _ in places:
@@ -863,7 +776,7 @@ def _compile(
     etree.indent(ctx.root, space="  ")
     xml = etree.tostring(ctx.root, encoding="utf-8")
     error = None
-    with _LOCK:
+    with LOCK:
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(lambda msg: None)  # validate reports warnings
         try:
@@ -875,7 +788,11 @@ def _compile(
     for key, parent, index in reversed(places):
         parent.insert(index, key)
     if error is not None and assembly:  # where MuJoCo would start each joint, read here
-        _repad(keys, layout, [(el.get("name"), joint_qpos0(el)) for el in joints(ctx.root)])
+        mjcf_joints.repad(
+            keys,
+            layout,
+            [(el.get("name"), mjcf_joints.joint_qpos0(el)) for el in mjcf_joints.joints(ctx.root)],
+        )
         return
     if error is not None:
         _blame(ctx, xml, error)
@@ -886,7 +803,7 @@ def _compile(
         adr = int(m.jnt_qposadr[j])
         width = {0: 7, 1: 4}.get(int(m.jnt_type[j]), 1)
         starts.append((m.joint(j).name, m.qpos0[adr : adr + width].tolist()))
-    _repad(keys, layout, starts)
+    mjcf_joints.repad(keys, layout, starts)
 
 
 def _blame(ctx: _Context, xml: bytes, error: str) -> None:

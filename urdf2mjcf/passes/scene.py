@@ -16,12 +16,12 @@ import numpy as np
 from lxml import etree
 
 from ..errors import ValidationError
-from ..fmt import mjcf_bytes, set_attrs
-from ..mjmodel import HomeCompiles, compile_home
-from .emit import EmitResult
+from ..fmt import set_attrs
+from ..mjcf.compile import HomeCompiles, compile_home
+from ..mjcf.document import Document, mjcf_bytes
 
 
-def lowest_point(result: EmitResult, compiles: HomeCompiles | None = None) -> float | None:
+def lowest_point(result: Document, compiles: HomeCompiles | None = None) -> float | None:
     """World z of the lowest collision geometry at the home keyframe (None: no geoms).
     ``compiles``: the conversion's last compile, reused where it has the same shape."""
     import mujoco
@@ -134,7 +134,7 @@ def scene_root(robot_file: str, model_name: str, floor_z: float = 0.0) -> etree.
 
 
 def run(
-    result: EmitResult, robot_file: str, model_name: str, compiles: HomeCompiles | None = None
+    result: Document, robot_file: str, model_name: str, compiles: HomeCompiles | None = None
 ) -> etree._Element:
     """The scene document around the robot document ``result`` (written as ``robot_file``)."""
     try:

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ValidationError
-from ..mjmodel import LOCK as _LOCK
-from ..mjmodel import (
+from ..mjcf.compile import (
+    LOCK,
     PassiveRun,
     compile_xml,
     files_named,
@@ -46,7 +46,7 @@ class ValidateConfig:
     ``duration / max_steps`` (0.1 ms) simulates less than ``duration`` (said in a
     debug log), so a tiny ``<option timestep>`` cannot make validation run forever."""
     passive_second: bool = False
-    """Also step the certificate's passive second (:func:`~urdf2mjcf.mjmodel.passive_second`):
+    """Also step the certificate's passive second (:func:`~urdf2mjcf.mjcf.compile.passive_second`):
     for a model without actuators it is the second above, stepped once with the energy
     read; else a copy of the model steps it in a thread beside. What it finds is the
     certificate's to judge, not validation's."""
@@ -81,10 +81,10 @@ def run(
     relative to its folder, of every file the model reads (``xml_path``'s
     own included); they are read from disk and compiled from memory under
     those names, as the other passes compile, so MuJoCo's mesh cache answers
-    (see :mod:`urdf2mjcf.mjmodel`).
+    (see :mod:`urdf2mjcf.mjcf.compile`).
 
     With ``files``, the second of simulation runs on the model's physics twin
-    (its documents without the visual geoms, :func:`~urdf2mjcf.mjmodel.without_visuals`:
+    (its documents without the visual geoms, :func:`~urdf2mjcf.mjcf.compile.without_visuals`:
     the same bodies, joints, colliding geoms and actuators, so the same
     trajectory bit for bit) in a thread while the whole model compiles: MuJoCo
     releases the GIL in both, and on two cores the stepping costs no time. The
@@ -98,7 +98,7 @@ def run(
 
     shown = report_as or xml_path
     warnings: list[str] = []
-    with _LOCK:
+    with LOCK:
         previous = mujoco.get_mju_user_warning()
         mujoco.set_mju_user_warning(warning_handler(warnings))
         twin: _Stepper | None = None

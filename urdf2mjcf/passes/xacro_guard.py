@@ -113,7 +113,7 @@ NAMESPACE_ALLOWED: dict[str, frozenset[str]] = {
     ),
 }
 
-# Names no description can write or define (not identifiers); see _check_shadowing.
+# Names no description can write or define (not identifiers); see check_shadowing.
 G_ATTR = "xacro guard.attribute"
 G_ITEM = "xacro guard.subscript"
 G_SLICE = "xacro guard.slice"
@@ -150,7 +150,7 @@ _FORBIDDEN_NODES: dict[type, str] = {
 }
 
 
-def _not_allowed(what: str) -> Refused:
+def refusal(what: str) -> Refused:
     return not_allowed(what)
 
 
@@ -178,31 +178,31 @@ def _spec_text(spec: ast.expr | None) -> str:
 
 def _check_node(node: ast.AST) -> None:
     if type(node) in _FORBIDDEN_NODES:
-        raise _not_allowed(_FORBIDDEN_NODES[type(node)])
+        raise refusal(_FORBIDDEN_NODES[type(node)])
     if isinstance(node, ast.Name) and node.id.startswith("__"):
-        raise _not_allowed(node.id)
+        raise refusal(node.id)
     if isinstance(node, ast.Attribute):
         if node.attr.startswith("_"):
-            raise _not_allowed(f".{node.attr}")
+            raise refusal(f".{node.attr}")
         if not isinstance(node.ctx, ast.Load):
-            raise _not_allowed(f"assignment to .{node.attr}")
+            raise refusal(f"assignment to .{node.attr}")
     if isinstance(node, ast.Subscript):
         key = node.slice
         if isinstance(key, ast.Constant) and isinstance(key.value, str | bytes):
             text = key.value if isinstance(key.value, str) else key.value.decode("latin-1")
             if text.startswith("__"):
-                raise _not_allowed(f"[{text!r}]")
+                raise refusal(f"[{text!r}]")
         if not isinstance(node.ctx, ast.Load):
-            raise _not_allowed("assignment to a subscript")
+            raise refusal("assignment to a subscript")
     if isinstance(node, ast.Starred) and not isinstance(node.ctx, ast.Load):
-        raise _not_allowed("starred assignment")
+        raise refusal("starred assignment")
     if isinstance(node, ast.comprehension) and node.is_async:
-        raise _not_allowed("async for")
+        raise refusal("async for")
     if isinstance(node, ast.FormattedValue) and node.format_spec is not None:
         spec = node.format_spec
         parts = spec.values if isinstance(spec, ast.JoinedStr) else [spec]
         if not all(isinstance(p, ast.Constant) and isinstance(p.value, str) for p in parts):
-            raise _not_allowed("an f-string format spec that is computed")
+            raise refusal("an f-string format spec that is computed")
         text = _spec_text(spec)
         if _too_wide(text):
             raise Refused(
@@ -505,7 +505,7 @@ class Guards:
     def attr(self, obj: Any, name: str) -> Any:
         self.budget.work(OPERATION)
         if name.startswith("_"):
-            raise _not_allowed(f".{name}")
+            raise refusal(f".{name}")
         if isinstance(obj, self.table_type):
             return self._namespace_attr(obj, name)
         kind = type(obj)
@@ -520,9 +520,9 @@ class Guards:
             if base is str and name == "format":
                 self.budget.work(text_steps(len(obj)) + obj.count("{") * WALK_STEPS)
                 if not _format_fields_plain(obj):
-                    raise _not_allowed("'{...}'.format with '.' or '[' in a field")
+                    raise refusal("'{...}'.format with '.' or '[' in a field")
             return self.bounded.method(obj, base, name)
-        raise _not_allowed(f"{_describe(obj)}.{name}")
+        raise refusal(f"{_describe(obj)}.{name}")
 
     def _copied(self, value: Any) -> Any:
         """A YAML value xacro's wrapper hands out (a list or dict it copies each time)."""
@@ -533,9 +533,9 @@ class Guards:
     def _namespace_attr(self, obj: Any, name: str) -> Any:
         glob = self.namespaces.get(id(obj))
         if glob is not None and name not in NAMESPACE_ALLOWED[glob]:
-            raise _not_allowed(f"{glob}.{name}")
+            raise refusal(f"{glob}.{name}")
         if hasattr(type(obj), name) or name in vars(obj):  # a method or the table's parent
-            raise _not_allowed(f"{glob or 'namespace'}.{name}")
+            raise refusal(f"{glob or 'namespace'}.{name}")
         return self.namespace_type.__getattr__(obj, name)  # xacro's own dotted lookup
 
     def item(self, obj: Any, key: Any) -> Any:
@@ -543,9 +543,9 @@ class Guards:
         if isinstance(obj, self.table_type):
             glob = self.namespaces.get(id(obj))
             if isinstance(key, str) and key.startswith("_"):
-                raise _not_allowed(f"{glob or 'namespace'}[{key!r}]")
+                raise refusal(f"{glob or 'namespace'}[{key!r}]")
             if glob is not None and key not in NAMESPACE_ALLOWED[glob]:
-                raise _not_allowed(f"{glob}[{key!r}]")
+                raise refusal(f"{glob}[{key!r}]")
             return obj[key]
         if isinstance(obj, str | bytes | list | tuple | dict | range):
             if isinstance(obj, dict):
@@ -556,7 +556,7 @@ class Guards:
             if isinstance(obj, self.yaml_dict | self.yaml_list):
                 return self._copied(result)
             return result
-        raise _not_allowed(f"{_describe(obj)}[...]")
+        raise refusal(f"{_describe(obj)}[...]")
 
     def call(self, func: Any, /, *args: Any, **kwargs: Any) -> Any:
         self.budget.work(OPERATION + len(args) + len(kwargs))
@@ -565,7 +565,7 @@ class Guards:
             return bounded(*args, **kwargs)
         if type(func) is Method or not callable(func):
             return func(*args, **kwargs)  # a bounded method; or Python's own TypeError
-        raise _not_allowed(f"calling {_describe(func)}")
+        raise refusal(f"calling {_describe(func)}")
 
     def binop(self, op: str, a: Any, b: Any) -> Any:
         budget = self.budget
@@ -712,7 +712,7 @@ class _Builtins(dict):
 
     def __missing__(self, key: str) -> Any:
         if hasattr(builtins, key) and key not in EVAL_BUILTINS:
-            raise _not_allowed(key)
+            raise refusal(key)
         raise KeyError(key)  # Python reports it undefined, as stock xacro does
 
 
@@ -725,7 +725,7 @@ def _describe(obj: Any) -> str:
     return f"a {type(obj).__name__}"
 
 
-def _check_shadowing(symbols: Any) -> None:
+def check_shadowing(symbols: Any) -> None:
     """Refuse when a symbol table holds a guard's name (an include's ``ns`` or a
     macro parameter can name anything): the guard would not be the one called."""
     for name in GUARD_NAMES:

@@ -53,9 +53,9 @@ from .xacro_guard import (
     NAMESPACE_ALLOWED,
     Checked,
     Guards,
-    _check_shadowing,
-    _not_allowed,
+    check_shadowing,
     checked,
+    refusal,
 )
 
 log = logging.getLogger(__name__)
@@ -201,7 +201,7 @@ class _Installer:
             # the check looks each guard's name up through every scope of the call
             depth = getattr(globals, "depth", 0)
             self.budget.work(len(GUARD_NAMES) * NAME_STEPS * (1 + depth))
-            _check_shadowing(globals)
+            check_shadowing(globals)
             globals.update(__builtins__=self.expr_builtins)  # as stock, plus the guards
             result = self._evaluate(code, globals, locals, depth)
             self._joined(result)
@@ -236,7 +236,7 @@ class _Installer:
             self.bounded.register(func, self.bounded.plain(func))
         try:
             code = self.compiled(s)
-            _check_shadowing(context["arg"])
+            check_shadowing(context["arg"])
             globs = {"__builtins__": self.eval_builtins}
             value = self._evaluate(code, globs, sa._DictWrapper(context["arg"], functions), 0)
             size = self.budget.text_size(value)
@@ -436,7 +436,7 @@ class _Installer:
 
         def tokenize(s: Any, sep: Any = ",; ", skip_empty: Any = True) -> Any:
             if not isinstance(sep, str) or "]" in sep[1:] or "\\" in sep:
-                raise _not_allowed("xacro.tokenize with ']' or '\\' in its separators")
+                raise refusal("xacro.tokenize with ']' or '\\' in its separators")
             if isinstance(s, str):
                 pieces = 1 + sum(map(s.count, set(sep)))
                 if pieces > MAX_ITEMS:

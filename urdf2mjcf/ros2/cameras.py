@@ -16,7 +16,7 @@ import numpy as np
 
 from ..runner.record import camera_info
 from . import described
-from .server import Extension, Server, _time
+from .server import Extension, Server, ros_time
 from .session import Node, Publisher
 
 
@@ -51,7 +51,7 @@ class Cameras(Extension):
         if t + 1e-9 < self._next:
             return
         self._next = max(self._next + 1.0 / self.rate, t)
-        stamp = _time(t)
+        stamp = ros_time(t)
         for c, image, infos, info in self._pubs:
             w, h = info["width"], info["height"]
             r = self._renderers[(h, w)]

@@ -16,7 +16,7 @@ from ..view.live import PACE_MAX
 from .options import ros2_options, transport
 
 
-@click.command("urdf2mjcf serve", context_settings={"help_option_names": ["-h", "--help"]})
+@click.command("serve", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("model", type=click.Path(path_type=Path, exists=True))
 @ros2_options("Serve to ROS 2 over rmw_zenoh (the transport served).")
 @click.option(

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from .server import _time
+from .server import ros_time
 from .session import Endpoints, Node, Publisher
 
 CLOCK = 10_000_000
@@ -80,7 +80,7 @@ class Ros2Stream:
         if self._time is not None and ns - self._time < CLOCK:
             return
         self._time = ns
-        self._clock.publish({"clock": _time(t)})
+        self._clock.publish({"clock": ros_time(t)})
         if self._extra is not None:
             self._extra(self.node)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..runner.rover.sim import RoverSim
 from . import controllers, keyexpr
-from .server import Extension, Server, _time
+from .server import Extension, Server, ros_time
 from .session import Node, Publisher
 from .trajectory_action import TrajectoryAction
 
@@ -212,7 +212,7 @@ class Rovers(Extension):
 
     def publish(self) -> None:
         d, m = self.sim.d, self.sim.m
-        stamp = _time(d.time)
+        stamp = ros_time(d.time)
         for name, r in self.sim.rovers.items():
             self._odom[name].publish(odometry(self.sim, name, stamp))
             base = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, r.base) or name

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 
 from . import described
-from .server import Extension, Server, _time
+from .server import Extension, Server, ros_time
 from .session import Node, Publisher
 
 _RAY = re.compile(r"^(?P<link>.+)_ray_\d+$")
@@ -85,7 +85,7 @@ class Scans(Extension):
         ]
 
     def publish(self) -> None:
-        stamp = _time(self.d.time)
+        stamp = ros_time(self.d.time)
         for s, pub in self._pubs:
             r = self.d.sensordata[s.adr]
             ranges = np.where(r < 0, np.inf, r)

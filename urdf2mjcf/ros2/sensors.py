@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import mujoco
 
 from . import described, keyexpr
-from .server import Extension, Server, _time
+from .server import Extension, Server, ros_time
 from .session import Node, Publisher
 
 S = mujoco.mjtSensor
@@ -94,7 +94,7 @@ class Sensors(Extension):
     def publish(self) -> None:
         A, G, Q, F, T = self._keys
         sd = self.d.sensordata
-        stamp = _time(self.d.time)
+        stamp = ros_time(self.d.time)
 
         def vec(adr: int) -> dict[str, float]:
             return {"x": float(sd[adr]), "y": float(sd[adr + 1]), "z": float(sd[adr + 2])}

@@ -93,7 +93,8 @@ class Warnings:
         log.warning("%s", text)
 
 
-def _time(t: float) -> dict[str, int]:
+def ros_time(t: float) -> dict[str, int]:
+    """``builtin_interfaces/Time`` of ``t`` seconds."""
     ns = int(round(t * 1e9))
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
 
@@ -410,7 +411,7 @@ class Server:
     def joint_state(self) -> dict[str, Any]:
         d = self.d
         return {
-            "header": {"stamp": _time(d.time), "frame_id": ""},
+            "header": {"stamp": ros_time(d.time), "frame_id": ""},
             "name": self.joint_names,
             "position": d.qpos[self._qadr].tolist(),
             "velocity": d.qvel[self._vadr].tolist(),
@@ -419,7 +420,7 @@ class Server:
 
     def transforms(self, bodies: list[int]) -> dict[str, Any]:
         m, d = self.m, self.d
-        stamp = _time(d.time)
+        stamp = ros_time(d.time)
         out = []
         q_inv, q = np.zeros(4), np.zeros(4)
         for b in bodies:
@@ -513,7 +514,7 @@ class Server:
             e.open(node, self)
 
     def _publish(self) -> None:
-        self._clock.publish({"clock": _time(self.d.time)})
+        self._clock.publish({"clock": ros_time(self.d.time)})
         js = self.joint_state()
         self._js.publish(js)
         self._as.publish(js)

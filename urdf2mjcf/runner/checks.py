@@ -173,7 +173,7 @@ def action(value: Any, where: str, w: Waypoints) -> None:
 
 
 def check_spec(value: Any, where: str, w: Waypoints) -> None:
-    _mapping(value, where, w, {"joint_above_deg": _joint_above, "bag_lifted": number})
+    check_mapping(value, where, w, {"joint_above_deg": _joint_above, "bag_lifted": number})
 
 
 def _joint_above(value: Any, where: str, w: Waypoints) -> None:
@@ -187,17 +187,17 @@ def placements(value: Any, where: str, w: Waypoints) -> None:
         raise w.fail(where, "needs a mapping of component to {xyz, yaw}")
     keys = {"xyz": numbers(3, -LENGTH_MAX, LENGTH_MAX), "yaw": ranged(-ANGLE_MAX, ANGLE_MAX)}
     for comp, pose in value.items():
-        _mapping(pose, f"{where}.{comp}", w, keys, ("xyz", "yaw"))
+        check_mapping(pose, f"{where}.{comp}", w, keys, ("xyz", "yaw"))
 
 
 def section(keys: dict[str, Check], required: tuple[str, ...] = ()) -> Check:
     def check(value: Any, where: str, w: Waypoints) -> None:
-        _mapping(value, where, w, keys, required)
+        check_mapping(value, where, w, keys, required)
 
     return check
 
 
-def _mapping(
+def check_mapping(
     value: Any, where: str, w: Waypoints, keys: dict[str, Check], required: tuple[str, ...] = ()
 ) -> None:
     if not isinstance(value, Mapping):

@@ -35,7 +35,7 @@ from .checks import (  # noqa: F401  (the limits: documented as waypoints.*)
     STEPS_MAX,
     Check,
     Waypoints,
-    _mapping,
+    check_mapping,
     check_spec,
     count,
     degrees,
@@ -131,7 +131,7 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
     w = Waypoints(path, source)
     if not isinstance(spec, Mapping):
         raise w.fail("waypoints", "a waypoints file is a mapping with steps, bag and stowage")
-    _mapping(spec, "", w, TOP, ("bag", "stowage", "steps"))
+    check_mapping(spec, "", w, TOP, ("bag", "stowage", "steps"))
     steps = spec["steps"]
     if not isinstance(steps, list) or not steps:
         raise w.fail("steps", "needs a non-empty list of steps")
@@ -153,7 +153,7 @@ def check_shape(spec: Any, path: Path | None, source: Source | None = None) -> d
             raise w.fail(f"{at}.name", "another step has this name")
         seen.add(step["name"])
         keys, required = KINDS[step["kind"]]
-        _mapping(step, at, w, {**COMMON, **keys}, required)
+        check_mapping(step, at, w, {**COMMON, **keys}, required)
         if ("z" in step) != ("x" in step):
             raise w.fail(at, "give both tool axes z and x, or neither")
         if "z" in step and _parallel(step["z"], step["x"]):

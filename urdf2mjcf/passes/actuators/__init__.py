@@ -1,6 +1,7 @@
 """Actuators pass: MuJoCo actuators, joint tuning and gravity compensation.
 
-Runs after the inertia pass and before emit. ``run`` fills
+Runs after the inertia pass and before emit (whose document of the robot the pipeline
+hands it, to compile: :data:`RobotTree`). ``run`` fills
 ``Model.actuators`` (one per actuated joint, in URDF joint order),
 ``Model.joint_tuning`` (armature, damping, frictionloss) and
 ``Model.gravcomp``. A robot with no ``<ros2_control>``, no ``<transmission>``,
@@ -101,7 +102,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from fnmatch import fnmatchcase
 from pathlib import Path
@@ -111,8 +112,8 @@ import numpy as np
 
 from ...errors import ValidationError
 from ...ir import Actuator, Joint, JointTuning, Model, Note, Robot
-from ...mjmodel import HomeCompiles, compile_home
-from .. import emit
+from ...mjcf.compile import HomeCompiles, compile_home
+from ...mjcf.document import Document
 from . import config as actuator_config
 from . import servo as servo_design
 from . import tags as control_tags
@@ -151,9 +152,18 @@ class ActuatorConfig:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
 
 
-def run(model: Model, cfg: ActuatorConfig, compiles: HomeCompiles | None = None) -> Model:
-    """``compiles``: where the conversion keeps this pass's compile of the robot (the
-    scene pass reuses it where the shapes agree)."""
+RobotTree = Callable[[Model, bool], Document]
+"""The robot's MJCF document for a model (and ``floating_base``), which this pass
+compiles to size gains: the pipeline hands it emit's (``urdf2mjcf.api``), so that this
+pass never runs another."""
+
+
+def run(
+    model: Model, cfg: ActuatorConfig, tree: RobotTree, compiles: HomeCompiles | None = None
+) -> Model:
+    """``tree``: the robot's document for a model (:data:`RobotTree`). ``compiles``: where
+    the conversion keeps this pass's compile of the robot (the scene pass reuses it where
+    the shapes agree)."""
     robot = model.robot
     home = control_tags.initial_positions(robot)
     if home:  # the described start pose: the home keyframe, and the pose gains are sized at
@@ -193,6 +203,7 @@ def run(model: Model, cfg: ActuatorConfig, compiles: HomeCompiles | None = None)
             replace(model, joint_tuning=all_tuning, gravcomp=gravcomp),
             list(sized),
             cfg,
+            tree,
             compiles,
         )
         params = DesignParams(
@@ -367,17 +378,6 @@ def _gravcomp(
 # -- ranges --------------------------------------------------------------------
 
 
-def _joint_range(joint: Joint) -> tuple[float, float] | None:
-    """The range emit writes (None for unlimited joints)."""
-    if joint.type not in ("revolute", "prismatic") or joint.limit is None:
-        return None
-    lo, hi = joint.limit.lower, joint.limit.upper
-    if lo is None and hi is None or lo == hi:
-        return None
-    lo, hi = lo or 0.0, hi or 0.0
-    return (lo, hi) if lo < hi else None
-
-
 def _symmetric(limit: float | None) -> tuple[float, float] | None:
     return (-limit, limit) if limit is not None and limit > 0 else None
 
@@ -396,7 +396,7 @@ def _ranges(
     else:
         force = _symmetric(limit.effort if limit else None)
     if kind == "position":
-        ctrl = _joint_range(joint)
+        ctrl = joint.range
     elif kind == "velocity":
         ctrl = _symmetric(limit.velocity if limit else None)
     else:
@@ -424,15 +424,17 @@ def _ranges(
 
 
 def _measure(
-    model: Model, joints: list[str], cfg: ActuatorConfig, compiles: HomeCompiles | None = None
+    model: Model,
+    joints: list[str],
+    cfg: ActuatorConfig,
+    tree: RobotTree,
+    compiles: HomeCompiles | None = None,
 ) -> ServoSystem:
     """Compile ``model`` in memory and linearise it at the home keyframe."""
     import mujoco
 
     robot = model.robot
-    result = emit.run(
-        replace(model, actuators=(), sensors=()), emit.EmitConfig(floating_base=cfg.floating_base)
-    )
+    result = tree(replace(model, actuators=(), sensors=()), cfg.floating_base)
     try:
         # visual geoms carry no mass and touch nothing: left out of this compile
         m, d = compile_home(result.root, result.files, collision_only=True, compiles=compiles)

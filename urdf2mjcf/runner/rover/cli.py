@@ -387,13 +387,13 @@ def _ros2_stream(sim: RoverSim, ros: Transport, pace: float) -> Any:
     """The drive's node: the recording's messages, /clock and each rover's odometry."""
     from ...ros2.live import Ros2Stream
     from ...ros2.rovers import odometry
-    from ...ros2.server import _time
+    from ...ros2.server import ros_time
     from ...ros2.session import Endpoints
 
     odom: dict[str, Any] = {}
 
     def publish_odometry(node: Any) -> None:
-        stamp = _time(float(sim.d.time))
+        stamp = ros_time(float(sim.d.time))
         for name in sim.rovers:
             if name not in odom:
                 odom[name] = node.publisher(f"/{name}/odom", "nav_msgs/msg/Odometry")

@@ -84,7 +84,7 @@ class DeliverResult:
         )
 
 
-def _check_pair(sim: RoverSim) -> None:
+def check_pair(sim: RoverSim) -> None:
     missing = [n for n in ("collector", "printer") if n not in sim.rovers]
     if missing:
         raise RoverError(
@@ -168,7 +168,7 @@ def run_deliver(
 ) -> tuple[DeliverResult, list[dict]]:
     """The whole task on a fresh ``sim`` (home keyframe); the result and the drive phases'
     reports (``TaskReport`` dicts)."""
-    _check_pair(sim)
+    check_pair(sim)
     grains = Grains.find(sim.m)
     beads = find_beads(sim.m)
     if seed is not None:

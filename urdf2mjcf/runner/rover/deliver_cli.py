@@ -125,9 +125,9 @@ def _trials(run: TaskRun) -> tuple[dict, bool]:
     from .sim import RoverSim
 
     _check = RoverSim(run.scene)  # a bad bundle: one error line, before any worker starts
-    from .deliver import _check_pair
+    from .deliver import check_pair
 
-    _check_pair(_check)
+    check_pair(_check)
     del _check
     first = run.seed or 0
     seeds = list(range(first, first + run.trials))

@@ -25,7 +25,7 @@ from typing import Any
 
 from ...errors import FacilityError
 from ...schema import Source, load
-from ..checks import Waypoints, _mapping, name
+from ..checks import Waypoints, check_mapping, name
 from .roles import Rover
 from .tasks import DRIVES, TASKS
 
@@ -82,7 +82,7 @@ def check_task(spec: Any, at: str, w: Waypoints, *, arm: bool = False) -> dict:
             message = f"unknown kind '{kind}'"
         raise w.fail(f"{at}.kind", f"{message}; valid: {', '.join(valid)}")
     task = TASKS[kind]
-    _mapping(spec, at, w, {"kind": name, **task.checks}, task.required)
+    check_mapping(spec, at, w, {"kind": name, **task.checks}, task.required)
     return dict(spec)
 
 
@@ -93,7 +93,7 @@ def check_shape(data: Any, path: Path | None, source: Source | None = None) -> P
     if not isinstance(data, Mapping):
         raise w.fail("plan", "a task plan is a mapping with tasks (and rovers, arm)")
     top = {"rovers": _rovers, "tasks": lambda v, where, w: None, "arm": lambda v, where, w: None}
-    _mapping(data, "", w, top, ("tasks",))  # tasks and arm: checked one by one below
+    check_mapping(data, "", w, top, ("tasks",))  # tasks and arm: checked one by one below
     tasks = data["tasks"]
     if not isinstance(tasks, list) or not tasks:
         raise w.fail("tasks", "needs a non-empty list of tasks")

@@ -71,7 +71,7 @@ class TaskReport:
         )
 
 
-class _Track:
+class Track:
     """What one rover's task did, measured after every step: true path and turn, worst
     attitude, arm tracking; the odometry at the start."""
 

@@ -12,7 +12,7 @@ import numpy as np
 from .odometry import true_pose
 from .roles import Rover
 from .state import SimState
-from .tasks import Task, _profile
+from .tasks import Task, speed_profile
 
 CELL = 0.1
 """m: the grid's cell."""
@@ -152,7 +152,7 @@ class Pursue(Task):
         remaining = max(remaining, to_goal)
         if abs(alpha) > math.radians(60):  # turn in place towards the path first
             return 0.0, math.copysign(TURN_RATE, alpha)
-        v = _profile(remaining, float(sim.d.time) - self._t0, self.speed, 0.4)
+        v = speed_profile(remaining, float(sim.d.time) - self._t0, self.speed, 0.4)
         v = max(v, 0.03)
         dist = max(float(np.linalg.norm(d)), 1e-6)
         return v, 2 * v * math.sin(alpha) / dist

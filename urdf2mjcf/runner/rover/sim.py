@@ -16,7 +16,7 @@ from ...limits import TIMESTEP_RANGE
 from ..load import LoadError, open_facility
 from ..sim import Sim
 from .odometry import Odometry, rotation_matrix, true_pose, yaw_of
-from .report import TaskReport, _Track
+from .report import TaskReport, Track
 from .roles import Rover, RoverError, find_rovers
 from .tasks import ArmWave, Task
 
@@ -194,7 +194,7 @@ class RoverSim:
         t0 = self.d.time
         for name, task in tasks.items():
             task.start(self, self.rover(name))
-        track = {n: _Track(self, self.rovers[n]) for n in tasks}
+        track = {n: Track(self, self.rovers[n]) for n in tasks}
         out: dict[str, TaskReport] = {}
         while len(out) < len(tasks):
             if self.d.time - t0 > timeout:

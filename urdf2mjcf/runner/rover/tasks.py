@@ -56,7 +56,7 @@ class Task:
         raise NotImplementedError
 
 
-def _profile(remaining: float, elapsed: float, top: float, accel: float) -> float:
+def speed_profile(remaining: float, elapsed: float, top: float, accel: float) -> float:
     """Trapezoidal speed: ramp up at ``accel``, cruise at ``top``, brake to stop at the goal."""
     return max(0.0, min(top, accel * (elapsed + 0.05), math.sqrt(2 * accel * max(0.0, remaining))))
 
@@ -88,7 +88,7 @@ class Straight(Task):
         if self._stopping:
             self.done = sim.wheel_speed(rover) < 0.01
             return None, 0.0
-        v = sign * _profile(remaining, sim.d.time - self._t0, self.speed, self.accel)
+        v = sign * speed_profile(remaining, sim.d.time - self._t0, self.speed, self.accel)
         w = -self.heading_gain * (odo.turned_imu - self._h0) if self.hold_heading else 0.0
         return v, w
 
@@ -122,7 +122,7 @@ class Turn(Task):
         if self._stopping:
             self.done = sim.wheel_speed(rover) < 0.01
             return None, 0.0
-        return 0.0, sign * _profile(remaining, sim.d.time - self._t0, self.rate, self.accel)
+        return 0.0, sign * speed_profile(remaining, sim.d.time - self._t0, self.rate, self.accel)
 
 
 @dataclass

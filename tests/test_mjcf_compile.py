@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 import urdf2mjcf
-from urdf2mjcf import mjmodel
+from urdf2mjcf.mjcf import compile as mjcf_compile
 
 MESHES = Path(__file__).parent / "data" / "meshes"
 
@@ -71,7 +71,7 @@ def colliding(m, d) -> list[tuple]:
 def test_collision_only_compile_has_the_dynamics_and_contacts_of_the_whole(written):
     xml, files = written
     whole = mujoco.MjModel.from_xml_string(xml.decode(), files)
-    light, light_data = mjmodel.compile_home(xml, files, collision_only=True)
+    light, light_data = mjcf_compile.compile_home(xml, files, collision_only=True)
     assert light.nmesh < whole.nmesh  # the visual meshes were left out
     assert light.nmeshface < whole.nmeshface
     d, dl = at_home(whole), light_data
@@ -101,24 +101,24 @@ def test_collision_only_compile_has_the_dynamics_and_contacts_of_the_whole(writt
 
 def test_visual_geoms_that_could_matter_are_kept(written):
     xml, _ = written
-    assert mjmodel.without_visuals(xml) is not None
+    assert mjcf_compile.without_visuals(xml) is not None
     # a visual class that collides: its geoms make contacts
     colliding_class = xml.replace(
         b'<geom contype="0" conaffinity="0" group="2" density="0"/>',
         b'<geom contype="1" conaffinity="0" group="2" density="0"/>',
     )
     assert colliding_class != xml
-    assert mjmodel.without_visuals(colliding_class) is None
+    assert mjcf_compile.without_visuals(colliding_class) is None
     # masses from geoms: visual geoms would weigh
     from_geoms = xml.replace(b'inertiafromgeom="false"', b'inertiafromgeom="true"')
     assert from_geoms != xml
-    assert mjmodel.without_visuals(from_geoms) is None
+    assert mjcf_compile.without_visuals(from_geoms) is None
 
 
 def test_a_document_that_needs_what_was_left_out_compiles_whole(written):
     xml, files = written
     # a contact pair names a visual geom: left out, the pair would not compile
-    light = mjmodel.without_visuals(xml)
+    light = mjcf_compile.without_visuals(xml)
     assert light is not None
     name = b"visual_probe"
     tagged = xml.replace(b'<geom class="visual"', b'<geom name="visual_probe" class="visual"', 1)
@@ -128,7 +128,7 @@ def test_a_document_that_needs_what_was_left_out_compiles_whole(written):
         1,
     )
     assert name in tagged
-    m, _ = mjmodel.compile_home(tagged, files, collision_only=True)
+    m, _ = mjcf_compile.compile_home(tagged, files, collision_only=True)
     whole = mujoco.MjModel.from_xml_string(tagged.decode(), files)
     assert m.nmesh == whole.nmesh and m.npair == 1
 
@@ -136,14 +136,14 @@ def test_a_document_that_needs_what_was_left_out_compiles_whole(written):
 def test_a_collision_only_compile_is_given_only_the_files_it_names(written, monkeypatch):
     xml, files = written
     given: list[set[str]] = []
-    compile_xml = mjmodel.compile_xml
+    compile_xml = mjcf_compile.compile_xml
 
     def spy(doc, assets, warnings=None):
         given.append(set(assets))
         return compile_xml(doc, assets, warnings)
 
-    monkeypatch.setattr(mjmodel, "compile_xml", spy)
-    light, _ = mjmodel.compile_home(xml, files, collision_only=True)
+    monkeypatch.setattr(mjcf_compile, "compile_xml", spy)
+    light, _ = mjcf_compile.compile_home(xml, files, collision_only=True)
     assert len(given) == 1
     meshes = {light.mesh(i).name for i in range(light.nmesh)}
     assert meshes and all(any(m in name for name in given[0]) for m in meshes)
@@ -154,9 +154,9 @@ def test_a_collision_only_compile_is_given_only_the_files_it_names(written, monk
 def test_the_scene_pass_reuses_the_actuator_pass_compile_of_the_same_shape(tmp_path, monkeypatch):
     """The actuators pass compiles the robot (to size its gains); the scene pass needs only
     where the same bodies and geoms are at home: the conversion hands it that model
-    (mjmodel.HomeCompiles), and the floor it places is where a fresh compile puts it."""
+    (mjcf_compile.HomeCompiles), and the floor it places is where a fresh compile puts it."""
     calls = []
-    real = mjmodel.compile_xml
+    real = mjcf_compile.compile_xml
 
     def counting(xml, files, warnings=None):
         text = xml if isinstance(xml, bytes) else xml.encode()
@@ -164,12 +164,12 @@ def test_the_scene_pass_reuses_the_actuator_pass_compile_of_the_same_shape(tmp_p
             calls.append(len(text))
         return real(xml, files, warnings)
 
-    monkeypatch.setattr(mjmodel, "compile_xml", counting)
+    monkeypatch.setattr(mjcf_compile, "compile_xml", counting)
     source = Path(__file__).parent / "data" / "sim_robot" / "urdf" / "sim_arm.urdf.xacro"
     report = urdf2mjcf.convert(source, tmp_path / "robot.xml", use_environment=False, certify=False)
     assert report.compiled is not None
     assert len(calls) == 1, "the scene pass compiled the robot again"
-    monkeypatch.setattr(mjmodel, "compile_xml", real)
+    monkeypatch.setattr(mjcf_compile, "compile_xml", real)
     m = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
     d = at_home(m)
     lowest = min(

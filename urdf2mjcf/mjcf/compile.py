@@ -81,11 +81,11 @@ def compile_xml(
         return mujoco.MjModel.from_xml_string(text, dict(files))
 
 
-Document = Any
+Xml = Any
 """An MJCF document: its bytes, or its root element in memory (lxml), left unchanged."""
 
 
-def _tree(doc: Document) -> Any:
+def _tree(doc: Xml) -> Any:
     """A root element of ``doc`` that the caller may change (a copy of a tree)."""
     import copy
 
@@ -104,7 +104,7 @@ def _tree(doc: Document) -> Any:
     return root
 
 
-def _text(doc: Document) -> bytes:
+def _text(doc: Xml) -> bytes:
     from lxml import etree
 
     return (
@@ -197,7 +197,7 @@ def state_of(d: Any) -> Any:
 
 
 def compile_home(
-    xml: Document,
+    xml: Xml,
     files: Mapping[str, bytes],
     *,
     shape_only: bool = False,
@@ -242,7 +242,7 @@ def files_named(files: Mapping[str, bytes], *docs: bytes) -> dict[str, bytes]:
     return {name: data for name, data in files.items() if name.rsplit("/", 1)[-1] in named}
 
 
-def without_visuals(xml: Document) -> Any:
+def without_visuals(xml: Xml) -> Any:
     """``xml`` without its visual geoms and the meshes, materials and texture files
     only they use (bytes for bytes, a new tree for a tree); None where that could
     change the dynamics or the contacts. This is the physics twin that validation
@@ -296,7 +296,7 @@ def without_visuals(xml: Document) -> Any:
     return etree.tostring(root) if isinstance(xml, (bytes, str)) else root
 
 
-def shape(xml: Document) -> bytes:
+def shape(xml: Xml) -> bytes:
     """The document without what moves or shapes nothing: actuators, sensors,
     ``<visual>``, ``<contact>`` (pairs and exclusions only filter contacts), sites,
     cameras, the model name and the keyframes' controls. Two documents of one shape
@@ -429,5 +429,3 @@ def start_passive_second(m: Any, start: Any) -> Future[PassiveRun]:
 
     threading.Thread(target=work, name="urdf2mjcf-passive", daemon=True).start()
     return future
-
-
