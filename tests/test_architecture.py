@@ -354,3 +354,21 @@ def test_no_module_imports_a_private_name_of_another():
                     if a.name.startswith("_") and not a.name.startswith("__")
                 ]
     assert found == [], "\n".join(found)
+
+
+def test_the_five_common_changes_name_files_that_hold_what_they_say():
+    """docs/architecture.md's table of the changes made most: each file exists and holds
+    each registry or function the row names (in backquotes)."""
+    text = DOC.read_text()
+    block = text[text.index("<!-- newcomer:begin -->") : text.index("<!-- newcomer:end -->")]
+    rows = [r for r in block.splitlines() if r.startswith("| a ")]
+    assert len(rows) == 5
+    for row in rows:
+        _, change, files, what, _ = row.split("|")
+        paths = [ROOT / f for f in re.findall(r"`([\w/]+\.py)`", files)]
+        assert paths, change
+        sources = "\n".join(path.read_text() for path in paths)
+        for name in re.findall(r"`([A-Za-z_][\w]*)\*?`", what):
+            if name in ("check_",):
+                continue
+            assert re.search(rf"\b{re.escape(name)}\b", sources), f"{change}: {name}"
