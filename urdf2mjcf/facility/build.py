@@ -18,6 +18,7 @@ runtime replays and rebuilds it without the facility root's recipes.
 
 from __future__ import annotations
 
+import copy
 import logging
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import asdict, dataclass, field, replace
@@ -157,6 +158,19 @@ def _component_options(
     return options
 
 
+class Parts:
+    """Attached components built in memory (``components=False``), kept for the next
+    build of the same recipe from the same files: a seed moves a part, never changes it,
+    so seeded trials build each part once (``urdf2mjcf.runner.trials``). Only for builds
+    whose files do not change between them: nothing here looks at the files again."""
+
+    def __init__(self) -> None:
+        self._built: dict[tuple, tuple[Document, list, set[str], dict]] = {}
+
+    def __len__(self) -> int:
+        return len(self._built)
+
+
 def build_facility(
     recipe: Recipe,
     output: Path,
@@ -169,12 +183,14 @@ def build_facility(
     progress: Callable[[int, int, str], None] | None = None,
     overwrite: bool = False,
     fold_fixtures: bool = True,
+    parts: Parts | None = None,
 ) -> FacilityReport:
     """Compile ``recipe`` into the folder ``output``: on success, the files of an earlier
     build there are replaced and nothing else is touched. A non-empty ``output`` without
     our ``facility.json`` is refused unless ``overwrite``. ``fold_fixtures``: move static
     fixture geoms into their weld bodies (``urdf2mjcf.facility.fold``; the same
-    contacts, a cheaper broad phase)."""
+    contacts, a cheaper broad phase). ``parts``: attached components built by an earlier
+    build of this recipe (:class:`Parts`), with ``components=False``."""
     output = Path(output)
     previous = out.check_folder(output, overwrite, MANIFEST, GENERATOR)
     root = root.resolve()
@@ -217,7 +233,7 @@ def build_facility(
 
     with out.staged_folder(output) as stage:
         built: dict[str, Path] = {}
-        parts: list[attach.Part] = []
+        attached_parts: list[attach.Part] = []
         placed: list = []
         links: set[str] = set()
         limits: dict[str, dict[str, dict[str, float]]] = {}
@@ -233,8 +249,9 @@ def build_facility(
                 workers=workers,
                 cache_dir=cache_dir,
                 progress=progress,
+                kept=parts,
             )
-            parts.append(part)
+            attached_parts.append(part)
             placed += tags
             links |= names
             if components:
@@ -251,10 +268,10 @@ def build_facility(
         )
         if all(c.attach is not None for c in table.values() if c.roles is not None):
             options["actuator_config"] = None  # every robot brings its own actuators
-        joined = attach.Attach(parts, recipe=recipe.path)
+        joined = attach.Attach(attached_parts, recipe=recipe.path)
         passes = [step for step in (joined, folding, tagging) if step is not None]
         config = api.make_options(args=args, scene=False, **options)
-        if parts:  # the world's <mujoco> may name the parts' bodies (a weld to a rover)
+        if attached_parts:  # the world's <mujoco> may name the parts' bodies (a rover's weld)
             config = replace(config, extension=replace(config.extension, assembly=True))
         report = api.convert(top, stage / "scene.xml", config, model_passes=passes)
         placed += tagging.placed
@@ -339,6 +356,7 @@ def _attached_component(
     workers: int,
     cache_dir: Path | None,
     progress: Callable[[int, int, str], None] | None,
+    kept: Parts | None = None,
 ) -> tuple[attach.Part, list, set[str], dict[str, dict[str, float]]]:
     """Compile component ``name`` on its own with its ``attach`` arguments and its tags,
     into ``target`` (validated, as every conversion) or, None, in memory only, with its
@@ -354,6 +372,11 @@ def _attached_component(
             element=f"components.{name}.standalone",
         )
     args = comp.attach_args(recipe.flags)
+    key = (name, str(src), tuple(sorted(args.items())), str(calibration))
+    if target is None and kept is not None and key in kept._built:
+        result, placed, links, limits = kept._built[key]
+        part = attach.Part(name, result, pose.xyz, attach.yaw_quat(pose.yaw))
+        return part, list(placed), set(links), copy.deepcopy(limits)
     options = _component_options(
         root, recipe, comp, src, args, workers=workers, cache_dir=cache_dir, progress=progress
     )
@@ -368,7 +391,10 @@ def _attached_component(
     assert keep.result is not None and model is not None
     part = attach.Part(name, keep.result, pose.xyz, attach.yaw_quat(pose.yaw))
     links = {link.name for link in model.robot.links}
-    return part, tags.placed, links, conversion_report.motion_limits(model)
+    limits = conversion_report.motion_limits(model)
+    if target is None and kept is not None:
+        kept._built[key] = (keep.result, list(tags.placed), set(links), copy.deepcopy(limits))
+    return part, tags.placed, links, limits
 
 
 def _calibration_file(root: Path, recipe: Recipe, name: str, comp: Component) -> Path | None:

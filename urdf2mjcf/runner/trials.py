@@ -4,7 +4,9 @@
 
 Trials run on an executor (:mod:`.executors`: the local process pool or a Ray
 cluster), one job per seed. A trial depends only on its seed and its inputs,
-never on the worker that ran it: it builds into a folder of its own, the caches
+never on the worker that ran it: it builds into a folder of its own (a worker builds
+the attached components once per run and moves them per seed, ``facility.build.Parts``:
+the same bytes as a fresh build), the caches
 it shares with other workers are written atomically (``urdf2mjcf.cache``), and
 its pictures come back as bytes for the caller to write, so a worker on another
 machine needs no shared folder for its output.
@@ -16,12 +18,15 @@ The recipe they rebuild is the bundle's own copy (``recipe.yaml``) unless one is
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 import traceback
+import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .executors import Kind, removed_on_stop, run_jobs
 
@@ -36,6 +41,15 @@ class TrialJob:
     seed: int
     frames: bool
     """Whether to save the demo's pictures (returned as bytes under ``"frames"``)."""
+    run: str = ""
+    """The run the trial is one of (:func:`run_trials` gives each run its own): a worker
+    keeps the parts it built for the other trials of its run (their files are the same),
+    never for another run's."""
+
+
+_PARTS: dict[tuple[str, str, str], Any] = {}
+"""(run, recipe, root) -> the attached components this worker built for that run's
+trials (``urdf2mjcf.facility.build.Parts``): each seed moves them, none changes them."""
 
 
 def check_recipe(path: Path) -> Path:
@@ -95,6 +109,7 @@ def run_trial(job: TrialJob) -> dict:
                 seed=job.seed,
                 components=False,
                 workers=1,  # one CPU per trial: the executor runs the trials side by side
+                parts=_parts(job),
             )
             offsets = rep.manifest.get("offsets")
             res = run_demo(rep.output, job.waypoints, frames=frames, log=lines.append)
@@ -125,6 +140,17 @@ def run_trial(job: TrialJob) -> dict:
     return result
 
 
+def _parts(job: TrialJob) -> Any:
+    """This worker's parts for ``job``'s run (only the latest run's are kept)."""
+    from ..facility.build import Parts
+
+    key = (job.run, job.recipe, job.root)
+    if key not in _PARTS:
+        _PARTS.clear()
+        _PARTS[key] = Parts()
+    return _PARTS[key]
+
+
 def run_trials(
     recipe_path: Path,
     root: Path,
@@ -141,6 +167,9 @@ def run_trials(
 
     With ``frames``, each trial's pictures are written to ``frames/seed-S/`` here, as
     the trial ends. ``on_done(result)`` is called as each trial ends (progress)."""
+    run = uuid.uuid4().hex  # this run's trials share parts, no other run's do
+    if executor == "local" and workers is None:
+        workers = min(len(seeds), os.cpu_count() or 1, 8)  # one per CPU: parts reused
     jobs = [
         TrialJob(
             str(Path(recipe_path).resolve()),
@@ -148,6 +177,7 @@ def run_trials(
             str(Path(waypoints).resolve()),
             s,
             frames is not None,
+            run,
         )
         for s in seeds
     ]
