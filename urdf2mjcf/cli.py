@@ -640,6 +640,6 @@ def facility_demo_main() -> None:
 
 def rover_drive_main() -> None:
     headless.configure()
-    from .runner.rover import rover_drive_command
+    from .runner.rover.cli import rover_drive_group
 
-    run_command(rover_drive_command)
+    run_command(rover_drive_group)

@@ -56,6 +56,17 @@ def _add_debug_option(command: click.Command) -> None:
         )
 
 
+def _command_path(command: click.Command, ctx: click.Context | None) -> str:
+    """The command as typed, root by its own name: ``urdf2mjcf batch`` (a sub-command's
+    help is where its options are), whatever ``argv[0]`` was."""
+    names = []
+    while ctx is not None and ctx.parent is not None:
+        if ctx.info_name:  # a hidden default sub-command has none
+            names.append(ctx.info_name)
+        ctx = ctx.parent
+    return " ".join([command.name or "", *reversed(names)]).strip()
+
+
 def run_command(
     command: click.Command, args: list[str] | None = None, prog_name: str | None = None
 ) -> None:
@@ -99,8 +110,7 @@ def run_command(
         click.echo("error: aborted", err=True)
         sys.exit(2)
     except click.UsageError as exc:
-        path = exc.ctx.command_path if exc.ctx is not None else command.name
-        hint = f" (see '{path} --help')"  # the sub-command's help: `urdf2mjcf batch --help`
+        hint = f" (see '{_command_path(command, exc.ctx)} --help')"
         click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
         sys.exit(2)
     except click.ClickException as exc:

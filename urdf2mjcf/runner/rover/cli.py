@@ -401,3 +401,109 @@ def _ros2_stream(sim: RoverSim, ros: Transport, pace: float) -> Any:
 
     endpoints = Endpoints(listen=ros.listen, connect=ros.connect)
     return Ros2Stream(sim.d, endpoints, ros.domain, "rover_drive", publish_odometry, pace)
+
+
+# -- sub-commands -----------------------------------------------------------------
+
+_DRIVE_OUTPUTS = (
+    "settle", "report", "record", "plot", "overwrite", "view", "pace", "foxglove",
+    "foxglove_wait", "allow_origins", "ros2", "zenoh_connect", "zenoh_listen", "ros_domain",
+)  # fmt: skip
+SUBCOMMANDS: dict[str, tuple[tuple[str, ...], dict[str, Any], str]] = {
+    "drive": (
+        ("scene", "names", "distance", "speed", "turn", "rate", "arm", *_DRIVE_OUTPUTS),
+        {},
+        "Drive the rovers of a built facility (SCENE: its folder or scene.xml) straight, "
+        "then turn in place; print wheel odometry against the true pose.",
+    ),
+    "plan": (
+        ("scene", "plan", "names", *_DRIVE_OUTPUTS),
+        {},
+        "Run the tasks of a YAML task plan (PLAN: straight, turn, hold, an arm motion; "
+        "checked whole against the bundle first) with the rovers of SCENE; print wheel "
+        "odometry against the true pose.",
+    ),
+    "deliver": (
+        ("scene", "seed", "report", "overwrite", "trials", "workers", "executor"),
+        {"task": "deliver"},
+        "The collector brings regolith to the printer, which prints a layer, judged from "
+        "the physics (a pair built with recipes/mira3d-pair*.yaml; exit 1 when it fails); "
+        "--trials: seeded trials with their success rate and Wilson interval.",
+    ),
+    "console": (
+        ("scene", "names", "settle", "pace", "port", "allow_origins"),
+        {"console": True},
+        "Serve a browser console and its HTTP/JSON API on 127.0.0.1 for the rovers of "
+        "SCENE (cameras, IMU, odometry, wheel and arm sliders, latched emergency stop) "
+        "until Ctrl-C or SIGTERM (exit 0).",
+    ),
+}
+"""rover-drive's sub-commands: name -> (the options of ``rover_drive_command`` it takes,
+the values it sets, its help). Each takes only its own options, so none needs the old
+command's option-exclusion checks."""
+
+
+def _param(name: str) -> click.Parameter:
+    if name == "plan":  # the plan file is the sub-command's argument
+        return click.Argument(["plan"], type=click.Path(path_type=Path, dir_okay=False))
+    (param,) = [p for p in rover_drive_command.params if p.name == name]
+    return param
+
+
+def _subcommand(name: str) -> click.Command:
+    params, fixed, doc = SUBCOMMANDS[name]
+
+    def run(**kwargs: Any) -> None:
+        ctx = click.get_current_context()
+        ctx.invoke(rover_drive_command, **kwargs, **fixed)
+
+    return click.Command(
+        name,
+        callback=run,
+        params=[_param(p) for p in params],
+        help=doc,
+        context_settings={"help_option_names": ["-h", "--help"]},
+    )
+
+
+class _RoverCommands(click.Group):
+    """:data:`SUBCOMMANDS`. A first argument that names none is the spelling from before
+    sub-commands (``rover-drive SCENE [--plan F | --task deliver | --console] ...``),
+    which keeps working, with its option checks, for a release."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if not args or (args[0] not in self.commands and args[0] not in ctx.help_option_names):
+            args = [_LEGACY, *args]
+        return super().parse_args(ctx, args)
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        name, command, rest = super().resolve_command(ctx, args)
+        return ("" if name == _LEGACY else name), command, rest  # its errors: `rover-drive`
+
+
+_LEGACY = "legacy"
+
+
+rover_drive_group = _RoverCommands(
+    "rover-drive",
+    commands={name: _subcommand(name) for name in SUBCOMMANDS},
+    help="""Drive the MIRA3D rovers of a built world: a straight drive and a turn, a task
+    plan, the deliver task, or a browser console.
+
+    'rover-drive SCENE [options]' (without a sub-command) is the spelling from before
+    sub-commands and keeps working for a release: --plan FILE is 'plan', --task deliver
+    is 'deliver', --console is 'console', anything else 'drive'.""",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+rover_drive_group.add_command(
+    click.Command(
+        _LEGACY,
+        callback=rover_drive_command.callback,
+        params=list(rover_drive_command.params),
+        help=rover_drive_command.help,
+        hidden=True,
+        context_settings={"help_option_names": ["-h", "--help"]},
+    )
+)
