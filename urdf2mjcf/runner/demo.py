@@ -36,6 +36,7 @@ from .load import Facility, Robot
 from .noise import SensorNoise
 from .sim import Sim
 from .steps import STEPS, StepError
+from .task_kinds import POSE
 from .waypoints import check_names, read_waypoints
 
 
@@ -371,7 +372,7 @@ class Demo:
         return self.ik(moved[:3, :3] @ p + moved[:3, 3], moved[:3, :3] @ R, q0=q)
 
     def target_pose(self, step: dict) -> tuple[np.ndarray, np.ndarray]:
-        origin, R0 = self.frame(step.get("frame", "world"))
+        origin, R0 = self.frame(step.get("frame", POSE.default("frame")))
         pos = origin + R0 @ np.asarray(step["position"], float)
         _, Rcur = ik.site_pose(self.m, self.d, self.site, self.ctl.target, self.r.qpos)
         if "orientation_xyzw" in step:

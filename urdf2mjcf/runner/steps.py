@@ -47,16 +47,10 @@ from . import ik, localize, perception
 from .checks import (
     Check,
     Waypoints,
-    axis,
-    flag,
-    joint_values,
-    joints,
-    name,
-    numbers,
 )
 from .control import path_duration
 from .hinge import arc, hinge_axis, turned
-from .task_kinds import GRIPPER, HINGE, LOCALIZE, LOOK, WAIT, TaskKind
+from .task_kinds import GRIPPER, HINGE, JOINTS, LOCALIZE, LOOK, POSE, RELATIVE, WAIT, TaskKind
 
 
 def _keys(kind: TaskKind) -> dict[str, Check]:
@@ -114,7 +108,8 @@ def _camera(step: dict, at: str, fac: Any, w: Waypoints) -> None:
 @register
 class Joints(Step):
     kind = "joints"
-    keys = {"q": joints, "arm": joints, "set": joint_values, "relative_to": name}
+    keys = _keys(JOINTS)
+    required = _required(JOINTS)
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
         robot = fac.robot
@@ -143,19 +138,8 @@ class Joints(Step):
 @register
 class Pose(Step):
     kind = "pose"
-    keys = {
-        "position": numbers(3),
-        "frame": name,
-        "z": axis,
-        "x": axis,
-        "x_sign_free": flag,
-        "orientation_xyzw": numbers(4, nonzero=True),
-        "site": name,
-        "joint_space": flag,
-        "seed": joints,
-        "relative_to": name,
-    }
-    required = ("position",)
+    keys = _keys(POSE)
+    required = _required(POSE)
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
         if "seed" in step:
@@ -163,7 +147,7 @@ class Pose(Step):
 
     def run(self, demo: Any, step: dict) -> None:
         pos, R = demo.target_pose(step)
-        if step.get("joint_space"):
+        if _value(POSE, step, "joint_space"):
             seed = np.array(step["seed"], float) if "seed" in step else demo.ctl.target
             demo.planned_move(demo.ik(pos, R, q0=seed), step.get("carried", False))
             return
@@ -174,7 +158,8 @@ class Pose(Step):
 @register
 class Relative(Step):
     kind = "relative"
-    keys = {"tool": numbers(3), "world": numbers(3)}
+    keys = _keys(RELATIVE)
+    required = _required(RELATIVE)
 
     def run(self, demo: Any, step: dict) -> None:
         p, R = ik.site_pose(demo.m, demo.d, demo.site, demo.ctl.target, demo.r.qpos)

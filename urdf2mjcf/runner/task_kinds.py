@@ -23,10 +23,14 @@ from .checks import (
     PIXELS_MAX,
     Check,
     action,
+    axis,
     count,
     degrees,
     duration,
     flag,
+    joint_values,
+    joints,
+    numbers,
     ranged,
     seconds,
 )
@@ -59,7 +63,7 @@ NUMBER_MAX = 1e6
 
 @dataclass(frozen=True)
 class Param:
-    """One typed parameter: ``default`` None means required."""
+    """One typed parameter: ``default`` None means required, unless ``optional``."""
 
     name: str
     type: type
@@ -75,10 +79,13 @@ class Param:
     given: Check | None = None
     """The YAML check, where the shared one of its kind is meant (the demo's ``seconds``
     and ``duration``: the waypoints file's time bound finds them by identity)."""
+    optional: bool = False
+    """May be left out, with no default: left out, the kind does without it (a pose step
+    without ``frame`` is in the world)."""
 
     @property
     def required(self) -> bool:
-        return self.default is None
+        return self.default is None and not self.optional
 
     @property
     def allowed(self) -> str:
@@ -197,12 +204,53 @@ ARM = register(TaskKind("arm", "command", (
 
 def _given(name: str, check: Check, type_: type, unit: str, doc: str, default: Any = None,
            allowed: str | None = None, low: float | None = None, high: float | None = None,
-           low_open: bool = False) -> Param:  # fmt: skip
+           low_open: bool = False, optional: bool = False) -> Param:  # fmt: skip
     return Param(name, type_, unit, doc, low, high, low_open, default=default,
-                 allowed_text=allowed, given=check)  # fmt: skip
+                 allowed_text=allowed, given=check, optional=optional)  # fmt: skip
 
 
 _CAMERA = _given("camera", a_name, str, "", "the camera role", "wrist", "a camera role")
+_RELATIVE_TO = _given("relative_to", a_name, str, "", "a component the target moves with "
+                      "(its pose as localized)", allowed="a component", optional=True)
+
+JOINTS = register(TaskKind("joints", "step", (
+    _given("q", joints, list, "rad or m", "every joint's target, in the robot's order",
+           allowed="a number per joint", optional=True),
+    _given("arm", joints, list, "rad", "the arm joints' targets",
+           allowed="a number per arm joint", optional=True),
+    _given("set", joint_values, dict, "rad or m", "targets of the joints named",
+           allowed="{joint: number}", optional=True),
+    _RELATIVE_TO,
+), "a joint move planned collision-free"))  # fmt: skip
+
+POSE = register(TaskKind("pose", "step", (
+    _given("position", numbers(3), list, "m", "the tool site's target position",
+           allowed="3 numbers"),
+    _given("frame", a_name, str, "", "the frame the target is in: a body, `handle` (the one "
+           "`look` found) or the world", "world", allowed="a body, handle or world"),
+    _given("z", axis, list, "", "the tool's z axis in that frame",
+           allowed="3 numbers, not 0", optional=True),
+    _given("x", axis, list, "", "the tool's x axis in that frame",
+           allowed="3 numbers, not 0", optional=True),
+    _given("x_sign_free", flag, bool, "", "x or -x, whichever is nearer", False),
+    _given("orientation_xyzw", numbers(4, nonzero=True), list, "", "the tool's orientation",
+           allowed="4 numbers, not 0", optional=True),
+    _given("site", a_name, str, "", "the site to place (default: the tool's)",
+           allowed="a site", optional=True),
+    _given("joint_space", flag, bool, "", "a planned joint move to the IK solution instead "
+           "of a Cartesian path", False),
+    _given("seed", joints, list, "rad or m", "the IK's start",
+           allowed="a number per joint", optional=True),
+    _RELATIVE_TO,
+), "the tool to a pose: a Cartesian path, or a planned joint move"))  # fmt: skip
+
+RELATIVE = register(TaskKind("relative", "step", (
+    _given("tool", numbers(3), list, "m", "an offset in the tool's frame",
+           allowed="3 numbers", optional=True),
+    _given("world", numbers(3), list, "m", "an offset in the world",
+           allowed="3 numbers", optional=True),
+), "the tool moved by an offset along a Cartesian path"))  # fmt: skip
+
 
 HINGE = register(TaskKind("hinge", "step", (
     _given("joint", a_name, str, "", "the hinge joint", allowed="a joint of the facility"),
@@ -252,6 +300,8 @@ def keys_table(families: tuple[Family, ...] = ("drive", "arm")) -> list[str]:
             d = p.default
             shown = (
                 "required"
+                if p.required
+                else "-"
                 if d is None
                 else str(d).lower()
                 if isinstance(d, bool)

@@ -51,7 +51,7 @@ from .checks import (  # noqa: F401  (the limits: documented as waypoints.*)
     speed,
 )
 from .steps import STEPS
-from .task_kinds import HINGE
+from .task_kinds import HINGE, POSE
 
 COMMON: dict[str, Check] = {
     "name": name,
@@ -242,7 +242,7 @@ def check_names(spec: Mapping, path: Path | None, fac: Any) -> None:
     for i, step in enumerate(spec["steps"]):
         at = _step_at(i, step)
         STEPS[step["kind"]].check(step, at, fac, w)
-        frame = step.get("frame", "world")
+        frame = step.get("frame", POSE.default("frame"))
         if frame not in ("world", "handle"):
             exists(obj.mjOBJ_BODY, frame, f"{at}.frame")
         if "joint_above_deg" in step.get("check", {}):
