@@ -14,7 +14,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .. import bundle, mjcf_input
+from .. import bundle, bundle_manifest, mjcf_input
 from ..bundle import MANIFEST
 from ..errors import LoadError
 from ..limits import TIMESTEP_RANGE
@@ -44,15 +44,16 @@ def facility_files(path: str | Path) -> tuple[Path, Path]:
 
 
 def read_manifest(path: Path) -> dict:
-    """A facility.json of this schema version as a dict with a ``components`` mapping;
-    LoadError otherwise (``urdf2mjcf.bundle.read_manifest``)."""
-    return bundle.read_manifest(path, error=LoadError)
+    """A facility.json of this schema version, checked (``urdf2mjcf.bundle.read_manifest``),
+    as its JSON; LoadError otherwise."""
+    return bundle.read_manifest(path, error=LoadError).to_json()
 
 
 def bundled_file(folder: Path, manifest: dict, key: str) -> Path | None:
     """The bundle's copy ``key`` (``"demo"``, ``"recipe"``) that facility.json names, or
     None when the bundle has none; a LoadError naming facility.json otherwise."""
-    return bundle.bundled_file(folder, manifest, key, folder / MANIFEST, error=LoadError)
+    typed = bundle_manifest.parse_manifest(manifest, folder / MANIFEST, error=LoadError)
+    return bundle.bundled_file(folder, typed, key, folder / MANIFEST, error=LoadError)
 
 
 def compile_scene(scene: Path) -> mujoco.MjModel:
