@@ -41,7 +41,7 @@ SCHEMA_VERSION = 1
 """The bundle format (``urdf2mjcf.bundle.SCHEMA_VERSION``)."""
 BUNDLE_KEY = "bundle"
 """The manifest's section naming the recipe and demo copies (relative to the bundle)."""
-LENGTH_MAX = 100.0
+WHEEL_LENGTH_MAX = 100.0
 """m: the largest wheel radius, track or wheelbase a rover's roles may give."""
 MOTION_KEYS = ("acceleration", "deceleration", "jerk")
 """The keys of a joint's ``motion_limits`` (URDF 1.2's)."""
@@ -287,9 +287,9 @@ class RoverRoles:
         lengths: dict[str, float] = {}
         for k in ("wheel_radius", "track"):
             x: Any = roles.get(k)
-            if not is_number(x) or not 0.0 < x <= LENGTH_MAX:
+            if not is_number(x) or not 0.0 < x <= WHEEL_LENGTH_MAX:
                 raise ManifestError(
-                    f"{key}.{k}", f"{_shown(x)} m is not above 0 and at most {LENGTH_MAX:g}"
+                    f"{key}.{k}", f"{_shown(x)} m is not above 0 and at most {WHEEL_LENGTH_MAX:g}"
                 )
             lengths[k] = x
         base_joint = roles.get("base_joint")
@@ -609,6 +609,10 @@ class Manifest:
     def placed(self) -> list[str]:
         """The components the recipe placed (those with a pose), by name."""
         return [n for n, c in self.components.items() if c.pose is not None]
+
+    def poses(self) -> dict[str, Pose]:
+        """Component -> its pose, for the components the recipe placed."""
+        return {n: c.pose for n, c in self.components.items() if c.pose is not None}
 
     def arms(self) -> dict[str, ArmRoles]:
         """Component -> its manipulator roles, for every component that has them."""

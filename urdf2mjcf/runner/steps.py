@@ -56,6 +56,7 @@ from .checks import (
 )
 from .control import path_duration
 from .hinge import arc, hinge_axis, turned
+from .load import DEMO_ROBOT
 from .task_kinds import GRIPPER, HINGE, LOCALIZE, LOOK, WAIT, TaskKind
 
 
@@ -297,7 +298,7 @@ class Localize(Step):
     settles = False
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
-        comps = sorted(c for c in fac.manifest["components"] if c != "robot")
+        comps = sorted(c for c in fac.manifest.components if c != DEMO_ROBOT)
         if step["component"] not in comps:
             message = f"'{step['component']}' is not a component; components: "
             raise w.fail(f"{at}.component", message + ", ".join(comps))

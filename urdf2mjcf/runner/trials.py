@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..bundle_manifest import thaw
 from .executors import Kind, removed_on_stop, run_jobs
 
 
@@ -96,7 +97,7 @@ def run_trial(job: TrialJob) -> dict:
                 components=False,
                 workers=1,  # one CPU per trial: the executor runs the trials side by side
             )
-            offsets = rep.manifest.get("offsets")
+            offsets = thaw(rep.written.offsets) if rep.written is not None else None
             res = run_demo(rep.output, job.waypoints, frames=frames, log=lines.append)
             result = res.to_json()
         except Exception as exc:  # a crash fails this seed, reported with the others
