@@ -4,6 +4,7 @@ builder writes, and a corrupted manifest is one error naming the file and the ke
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -153,3 +154,22 @@ def test_a_rover_role_out_of_range_names_its_key(tmp_path: Path) -> None:
 def test_a_minimal_manifest_opens(tmp_path: Path) -> None:
     man = from_json({"schema_version": 1, "components": {}})
     assert man.components == {} and man.cameras == () and man.seed is None
+
+
+RUNTIME = ("runner", "envs", "ros2")
+RAW = re.compile(r"manifest\[|manifest\.get\(|\[\"roles\"\]|\.get\(\"roles\"")
+
+
+def test_the_runtime_reads_no_manifest_json() -> None:
+    """The runtime's modules read the typed manifest only: no dict lookups into
+    facility.json (its one reading is urdf2mjcf.bundle_manifest's)."""
+    package = Path(__file__).resolve().parents[1] / "urdf2mjcf"
+    files = [p for d in RUNTIME for p in sorted((package / d).rglob("*.py"))]
+    files += [package / "cli.py", package / "bundle.py"]
+    hits = [
+        f"{p.relative_to(package)}:{n}: {line.strip()}"
+        for p in files
+        for n, line in enumerate(p.read_text().splitlines(), 1)
+        if RAW.search(line)
+    ]
+    assert hits == []

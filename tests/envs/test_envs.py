@@ -18,6 +18,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import urdf2mjcf.envs  # noqa: F401  (registers the ids)
+from urdf2mjcf.bundle_manifest import Manifest
 from urdf2mjcf.envs import build as env_build
 from urdf2mjcf.envs.base import tilt
 from urdf2mjcf.envs.mira3d import START_JITTER, Mira3DEnv
@@ -99,7 +100,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def _placed_bodies(folder: Path, manifest: dict) -> dict[str, str]:
+def _placed_bodies(folder: Path, manifest: Manifest) -> dict[str, str]:
     """Component -> the name of the world child that stands at its placement in the built
     facility as MuJoCo compiles it (named by the component's prefix or its roles' base)."""
     m = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
@@ -107,16 +108,16 @@ def _placed_bodies(folder: Path, manifest: dict) -> dict[str, str]:
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)
     out = {}
-    for name, comp in manifest["components"].items():
-        if "pose" not in comp:
+    for name, comp in manifest.components.items():
+        if comp.pose is None:
             continue
-        prefix, base = comp.get("prefix"), (comp.get("roles") or {}).get("base")
+        prefix, base = comp.prefix, (comp.roles or {}).get("base")
         for b in range(1, m.nbody):
             body = m.body(b).name
             if m.body_parentid[b] != 0 or not (body == base or (prefix and body.startswith(prefix))):
                 continue
-            if np.allclose(d.xpos[b], comp["pose"]["xyz"], atol=1e-9) and abs(
-                _wrap(_yaw(d.xquat[b]) - comp["pose"]["yaw"])
+            if np.allclose(d.xpos[b], comp.pose.xyz, atol=1e-9) and abs(
+                _wrap(_yaw(d.xquat[b]) - comp.pose.yaw)
             ) < 1e-9:
                 out[name] = body
     return out
