@@ -1,7 +1,8 @@
 """The demos a facility bundle is built for: which component the demo drives and
 where a facility root keeps its demos (the published one, iMETRO's, for a recipe with
 none of its own). The builder copies the demo into the bundle (``demo.yaml``, see
-``urdf2mjcf.bundle``); the bundle's format itself names no demo and no component.
+``urdf2mjcf.bundle``) and the demo's runtime drives ``DEMO_ROBOT``'s arm roles
+(``urdf2mjcf.runner.load``); the bundle's format itself names no demo and no component.
 """
 
 from __future__ import annotations

@@ -18,6 +18,7 @@ import numpy as np
 from .. import bundle, mjcf_input
 from ..bundle import MANIFEST
 from ..bundle_manifest import ArmRoles, Manifest
+from ..demos import DEMO_ROBOT
 from ..errors import BadManifest, LoadError
 from ..limits import TIMESTEP_RANGE
 
@@ -170,9 +171,8 @@ def _subtree(m: mujoco.MjModel, root: int) -> set[int]:
     return out
 
 
-DEMO_ROBOT = "robot"
-"""The component the demo drives (``urdf2mjcf.demos.DEMO_ROBOT``): its arm roles."""
 ROBOT_ROLES = f"components.{DEMO_ROBOT}.roles"
+"""Where facility.json lists the roles of the robot the demo drives."""
 
 
 def _motion_limits(manifest: Manifest, names: list[str]) -> list[float | None]:
