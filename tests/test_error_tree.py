@@ -25,7 +25,7 @@ PRODUCTS = {
     errors.FacilityError: "the bundle",
     errors.RunError: "the runtime",
 }
-SIGNALS = {errors.BadNumber, errors.YamlBombError, errors.BadCommand}
+SIGNALS = {errors.BadNumber, errors.YamlBombError, errors.BadCommand, errors.BadManifest}
 """Raised while a value is read and caught by its reader, which names the file."""
 CONTROL_FLOW = {
     ("command_runner.py", "Terminated"),  # SIGTERM unwinding (a BaseException, as KeyboardInterrupt)

@@ -1,5 +1,6 @@
 """A built facility's folder, the bundle: its file names, the manifest's schema version,
-and reading and checking ``facility.json``.
+and opening it: :func:`open_bundle` reads and checks ``facility.json`` once into the
+typed :class:`~urdf2mjcf.bundle_manifest.Manifest` the runtime reads.
 
 The builder (``urdf2mjcf.facility``) writes bundles and the runtime
 (``urdf2mjcf.runner``) reads them; both take the format from here, so that the
@@ -12,10 +13,11 @@ two copies under ``"bundle"``. docs/facility.md describes every file and field.
 
 from __future__ import annotations
 
-import json
-from pathlib import Path, PurePosixPath
+from dataclasses import dataclass
+from pathlib import Path
 
-from . import untrusted
+from . import bundle_manifest, untrusted
+from .bundle_manifest import Manifest
 from .errors import BundleError, ForgeError
 
 MANIFEST = "facility.json"
@@ -24,32 +26,37 @@ RECIPE = "recipe.yaml"
 """The copy of the recipe the facility was built from, as built (see facility/build.py)."""
 DEMO = "demo.yaml"
 """The copy of the demo (waypoints file) the facility was built for."""
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = bundle_manifest.SCHEMA_VERSION
 """The bundle format: the files above and the manifest's fields (docs/facility.md).
 Raised when a field the runtime reads changes meaning or a file it needs moves; a
 bundle of another version is refused, never half read."""
-BUNDLE_KEY = "bundle"
+BUNDLE_KEY = bundle_manifest.BUNDLE_KEY
 """The manifest's section naming the recipe and demo copies (relative to the bundle)."""
 
-DEMO_ROBOT = "robot"
-"""The component the demo drives (its roles): a recipe that places none gets no demo."""
-DEMOS = "recipes/demo"
-"""The demos under a facility root: ``<recipe name>.yaml`` for a recipe of its own."""
-PUBLISHED_DEMO = "imetro.yaml"
-"""The published demo, for a recipe with none of its own."""
+
+@dataclass(frozen=True)
+class Bundle:
+    """A bundle opened and checked: its folder, its two main files and its manifest
+    as typed values (:class:`~urdf2mjcf.bundle_manifest.Manifest`)."""
+
+    folder: Path
+    scene: Path
+    manifest_path: Path
+    manifest: Manifest
+
+    def file(self, key: str, *, error: type[ForgeError] = BundleError) -> Path | None:
+        """The bundle's copy ``key`` (``"recipe"``, ``"demo"``): :func:`bundled_file`."""
+        return bundled_file(self.folder, self.manifest, key, self.manifest_path, error=error)
 
 
-def demo_source(root: Path, recipe_name: str) -> Path | None:
-    """The demo a facility of ``recipe_name`` is built for: ``recipes/demo/<name>.yaml``
-    under the facility root when there is one (the compact layout's), else the published
-    ``recipes/demo/imetro.yaml``; None when the root holds neither."""
-    demos = Path(root) / DEMOS
-    if recipe_name and "/" not in recipe_name and "\\" not in recipe_name:
-        own = demos / f"{recipe_name}.yaml"
-        if own.is_file():
-            return own
-    published = demos / PUBLISHED_DEMO
-    return published if published.is_file() else None
+def open_bundle(path: str | Path, *, error: type[ForgeError] = BundleError) -> Bundle:
+    """The bundle given as its folder or its scene.xml, its facility.json read once and
+    checked (the schema version, every component and role, every field the runtime
+    reads); one ``error`` naming the file and the key (``components.robot.roles.joints``)
+    otherwise. The scene is not compiled here (``urdf2mjcf.runner.load`` does)."""
+    scene, manifest_path = facility_files(path, error=error)
+    manifest = bundle_manifest.read_manifest(manifest_path, error=error)
+    return Bundle(scene.parent, scene, manifest_path, manifest)
 
 
 def facility_files(path: str | Path, *, error: type[ForgeError] = BundleError) -> tuple[Path, Path]:
@@ -74,59 +81,31 @@ def facility_files(path: str | Path, *, error: type[ForgeError] = BundleError) -
     return scene, manifest
 
 
-def read_manifest(path: Path, *, error: type[ForgeError] = BundleError) -> dict:
-    """A facility.json of this :data:`SCHEMA_VERSION` as a dict with a ``components``
-    mapping; ``error`` naming the file (and the field) otherwise."""
-    raw = untrusted.read_file(path, "report", error=error, what="manifest")
-    try:
-        data = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else "not JSON"
-        raise error(f"not a manifest of make-facility: {reason}", file=path) from None
-    if isinstance(data, dict):
-        check_schema_version(data, path, error=error)
-    if not isinstance(data, dict) or not isinstance(data.get("components"), dict):
-        raise error(
-            "not a manifest of make-facility (no components)", file=path, element="components"
-        )
-    return data
-
-
-def check_schema_version(data: dict, path: Path, *, error: type[ForgeError] = BundleError) -> None:
-    """The manifest's ``schema_version`` is the one this version reads."""
-    version = data.get("schema_version")
-    if type(version) is int and version == SCHEMA_VERSION:
-        return
-    if "schema_version" not in data:
-        said = "missing: the bundle was built by an older make-facility"
-    else:
-        shown = untrusted.excerpt(json.dumps(version), 40)
-        said = f"{shown} is not {SCHEMA_VERSION}, the version this runtime reads"
-    raise error(f"{said}; rebuild it with make-facility", file=path, element="schema_version")
+def read_manifest(path: Path, *, error: type[ForgeError] = BundleError) -> Manifest:
+    """A facility.json of this :data:`SCHEMA_VERSION`, read and checked
+    (:func:`urdf2mjcf.bundle_manifest.read_manifest`); ``error`` naming the file and the
+    key otherwise."""
+    return bundle_manifest.read_manifest(path, error=error)
 
 
 def bundled_file(
     folder: Path,
-    manifest: dict,
+    manifest: Manifest,
     key: str,
     path: Path,
     *,
     error: type[ForgeError] = BundleError,
 ) -> Path | None:
     """The file the manifest's ``bundle.<key>`` names inside ``folder`` (``path``: the
-    manifest, for errors); None when it names none (``null``). A name that is not a
-    plain relative path inside the bundle, or a file that is not there, is ``error``."""
+    manifest, for errors); None when it names none (``null``). A key facility.json does
+    not give, or a file that is not there, is ``error`` (a name that is not a plain
+    relative path was refused as the manifest was read)."""
     element = f"{BUNDLE_KEY}.{key}"
-    section = manifest.get(BUNDLE_KEY)
-    if not isinstance(section, dict) or key not in section:
+    if key not in manifest.bundle.present:
         raise error("missing; rebuild the facility with make-facility", file=path, element=element)
-    rel = section[key]
+    rel = getattr(manifest.bundle, key)
     if rel is None:
         return None
-    pure = PurePosixPath(rel) if isinstance(rel, str) and rel else None
-    if pure is None or pure.is_absolute() or ".." in pure.parts or "\\" in rel:
-        shown = untrusted.excerpt(json.dumps(rel), 60)
-        raise error(f"{shown} is not a file name inside the bundle", file=path, element=element)
     target = Path(folder) / rel
     if not target.is_file():
         raise error(

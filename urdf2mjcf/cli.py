@@ -608,7 +608,7 @@ def make_facility_command(
         )
     if not quiet:
         _echo_notes(report.conversion.notes, verbose)
-        counts = report.manifest["counts"]
+        counts = report.written.counts.to_json() if report.written and report.written.counts else {}
         click.echo(f"wrote {report.scene}")
         click.echo(
             f"{parsed.name}: {counts['bodies'] - 1} bodies, {counts['joints']} joints, "

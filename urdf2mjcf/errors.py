@@ -175,5 +175,13 @@ class YamlBombError(ValueError):
     """A YAML document whose aliases expand past ``untrusted.YAML_MAX_NODES``."""
 
 
+class BadManifest(ValueError):
+    """A value of facility.json refused (``key`` and ``message``); the reader names the file."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(f"{key}: {message}")
+        self.key, self.message = key, message
+
+
 class BadCommand(ValueError):
     """A ROS command dropped as it is (the reason in the message)."""

@@ -18,6 +18,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env, data_equivalence
 
 import urdf2mjcf.envs  # noqa: F401  (registers the ids)
+from urdf2mjcf.bundle_manifest import Manifest
 from urdf2mjcf.envs import build as env_build
 from urdf2mjcf.envs.base import tilt
 from urdf2mjcf.envs.mira3d import START_JITTER, Mira3DEnv
@@ -99,7 +100,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def _placed_bodies(folder: Path, manifest: dict) -> dict[str, str]:
+def _placed_bodies(folder: Path, manifest: Manifest) -> dict[str, str]:
     """Component -> the name of the world child that stands at its placement in the built
     facility as MuJoCo compiles it (named by the component's prefix or its roles' base)."""
     m = mujoco.MjModel.from_xml_path(str(folder / "scene.xml"))
@@ -107,16 +108,16 @@ def _placed_bodies(folder: Path, manifest: dict) -> dict[str, str]:
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)
     out = {}
-    for name, comp in manifest["components"].items():
-        if "pose" not in comp:
+    for name, comp in manifest.components.items():
+        if comp.pose is None:
             continue
-        prefix, base = comp.get("prefix"), (comp.get("roles") or {}).get("base")
+        prefix, base = comp.prefix, (comp.roles or {}).get("base")
         for b in range(1, m.nbody):
             body = m.body(b).name
             if m.body_parentid[b] != 0 or not (body == base or (prefix and body.startswith(prefix))):
                 continue
-            if np.allclose(d.xpos[b], comp["pose"]["xyz"], atol=1e-9) and abs(
-                _wrap(_yaw(d.xquat[b]) - comp["pose"]["yaw"])
+            if np.allclose(d.xpos[b], comp.pose.xyz, atol=1e-9) and abs(
+                _wrap(_yaw(d.xquat[b]) - comp.pose.yaw)
             ) < 1e-9:
                 out[name] = body
     return out
@@ -144,11 +145,11 @@ def test_seeded_reset_is_deterministic_and_moves_within_the_jitter_ranges(built,
     recipe = load_recipe(ROOT / "recipes" / f"{RECIPES[eid]}.yaml", root=ROOT)
     moved = set()
     for name, (xyz_a, _) in poses_a.items():
-        comp = u.manifest["components"][name]
+        comp = u.manifest.components[name]
         ranges = recipe.jitter_ranges(name)
         if eid == "Mira3D-v0" and name == u.rover.name:
             ranges = START_JITTER  # the environment's documented start-pose ranges
-        nominal_xyz, nominal_yaw = np.array(comp["pose"]["xyz"]), comp["pose"]["yaw"]
+        nominal_xyz, nominal_yaw = np.array(comp.pose.xyz), comp.pose.yaw
         for (xyz, yaw), info in ((poses_a[name], info_a), (poses_c[name], info_c)):
             off = info["offsets"].get(name, {"dx": 0.0, "dy": 0.0, "dyaw": 0.0})
             pos, ang = (ranges or {}).get("position", 0.0), (ranges or {}).get("yaw", 0.0)
@@ -162,10 +163,10 @@ def test_seeded_reset_is_deterministic_and_moves_within_the_jitter_ranges(built,
         else:
             np.testing.assert_array_equal(xyz_a, poses_c[name][0])
     if eid == "IMetro-v0":
-        free = {n for n, c in u.manifest["components"].items() if c.get("free")}
+        free = {n for n, c in u.manifest.components.items() if c.free}
         assert free and free <= moved  # the CTB moves
         assert moved - free  # and so do the mockups
-        assert u.manifest["components"]["robot"]["roles"]  # the robot, the reference, does not
+        assert u.manifest.components["robot"].roles  # the robot, the reference, does not
         assert "robot" not in moved
     else:
         assert moved == {u.rover.name}
@@ -285,7 +286,7 @@ def test_imetro_reward_is_minus_the_grasp_site_distance_to_the_red_strap(built):
     env.reset(seed=2)
     _, reward, *_ = env.step(env.action_space.sample())
     m, d = u.model, u.data
-    (bag,) = [c["prefix"] for c in u.manifest["components"].values() if c.get("free")]
+    (bag,) = [c.prefix for c in u.manifest.components.values() if c.free]
     mine = np.array([m.body(int(b)).name.startswith(bag) for b in m.geom_bodyid])
     rgba = np.array([m.mat_rgba[i] if i >= 0 else m.geom_rgba[g] for g, i in enumerate(m.geom_matid)])
     red = red_mask((rgba[None, :, :3] * 255).astype(np.uint8))[0]

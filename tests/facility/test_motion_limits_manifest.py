@@ -75,7 +75,7 @@ def test_the_limits_of_a_1_2_robot_go_under_the_component_that_owns_them(tmp_pat
         "robot": {"prefix": "", "roles": None, "free": False, "motion_limits": owned["robot"]},
         "shelf": {"prefix": "shelf_", "roles": None, "free": False},
     }
-    entries = _components(m, {}, roles)
+    entries = {n: c.to_json() for n, c in _components(m, {}, roles).items()}
     assert entries["robot"]["motion_limits"] == attached["robot"]
     assert "motion_limits" not in entries["shelf"]
 

@@ -154,7 +154,7 @@ def test_a_demo_published_live_keeps_its_verdict_and_is_watched(imetro_bundle, t
         json.loads(plain.read_text())
     )
     fac = load(imetro_bundle)
-    gripper = fac.manifest["components"]["robot"]["roles"]["gripper"]["joints"][0]
+    gripper = fac.manifest.components["robot"].roles["gripper"]["joints"][0]
     assert len(states) >= 10 and gripper in states[-1].name, "".join(lines)
     stamps = [_stamp(s.header.stamp) for s in states]
     assert stamps == sorted(stamps) and stamps[-1] >= 0.5  # the gripper's 0.5 s step

@@ -277,7 +277,7 @@ def test_a_localize_step_or_relative_to_naming_what_is_not_there_is_refused(faci
 def test_a_facility_is_built_for_the_demo_written_for_its_recipe():
     """make-facility bundles recipes/demo/<recipe name>.yaml when the recipe has one
     (the compact layout), else the published demo; facility-demo replays that copy."""
-    from urdf2mjcf.bundle import demo_source
+    from urdf2mjcf.demos import demo_source
 
     demos = ROOT / "recipes" / "demo"
     assert demo_source(ROOT, "imetro") == demos / "imetro.yaml"

@@ -342,8 +342,8 @@ def test_cdr_fields_left_out_take_the_definitions_defaults() -> None:
 def _short_demo(folder: Path, tmp_path: Path) -> Path:
     """A demo of one gripper step (about 1 s simulated)."""
     fac = load(folder)
-    roles = fac.manifest["components"]["robot"]["roles"]
-    bag = fac.manifest["components"]["ctb"]["prefix"]
+    roles = fac.manifest.components["robot"].roles
+    bag = fac.manifest.components["ctb"].prefix
     m = fac.model
     named = (m.geom(g).name for g in range(m.ngeom) if m.geom_bodyid[g] == fac.body(bag))
     spec = {
@@ -366,7 +366,7 @@ def imetro(imetro_bundle: Path) -> Path:
 def test_facility_demo_streams_joints_images_and_wrench(imetro: Path, tmp_path: Path) -> None:
     waypoints = _short_demo(imetro, tmp_path)
     fac = load(imetro)
-    roles = fac.manifest["components"]["robot"]["roles"]
+    roles = fac.manifest.components["robot"].roles
     topics = ["/joint_states", "/wrist_camera/color/image_raw", "/ft_frame/wrench"]
     args = command(
         "facility_demo_main",

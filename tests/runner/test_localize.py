@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from urdf2mjcf.bundle_manifest import from_json
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.camera import CameraModel
@@ -82,7 +83,7 @@ def _render(folder: Path, eye: np.ndarray, target: np.ndarray, seed: int | None)
     m = spec.compile()
     d = mujoco.MjData(m)
     manifest = json.loads((folder / "facility.json").read_text())
-    noise = SensorNoise.from_manifest(manifest, seed) if seed is not None else None
+    noise = SensorNoise.from_manifest(from_json(manifest), seed) if seed is not None else None
     if noise is not None:
         noise.light(m)
     mujoco.mj_forward(m, d)
@@ -163,12 +164,12 @@ def test_locate_renders_through_the_runners_camera_and_records_the_errors(
     m = spec.compile()
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    noise = SensorNoise.from_manifest(manifest, seed=5)
+    noise = SensorNoise.from_manifest(from_json(manifest), seed=5)
     noise.light(m)
     camera = Camera(m, mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "probe"), noise=noise)
-    found = locate(camera, d, manifest)
+    found = locate(camera, d, from_json(manifest))
     camera.close()
-    record = localization_record(found, manifest)
+    record = localization_record(found, from_json(manifest).poses())
     assert set(record) == {"trainer"}
     assert record["trainer"]["position_error_m"] < POSITION_MM / 1000
     assert abs(record["trainer"]["yaw_error_deg"]) < YAW_DEG

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from urdf2mjcf.bundle_manifest import from_json
 from urdf2mjcf.errors import InputError
 from urdf2mjcf.facility.noise import DEFAULTS
 from urdf2mjcf.facility.recipe import load_recipe
@@ -129,7 +130,7 @@ def test_a_channel_turned_off_passes_its_data_through(config: dict) -> None:
     image = np.full((8, 8, 3), 77, np.uint8)
     depth = np.full((8, 8), 1.0, np.float32)
     assert np.array_equal(off.rgb(image), image) and np.array_equal(off.depth(depth), depth)
-    none = SensorNoise.from_manifest({"cameras": []}, seed=1)  # a build without a noise section
+    none = SensorNoise.from_manifest(from_json({"schema_version": 1, "components": {}}), seed=1)  # a build without a noise section
     f, t = none.wrench(np.ones(3), np.zeros(3))
     assert f.tolist() == [1, 1, 1] and t.tolist() == [0, 0, 0]
 

@@ -318,7 +318,7 @@ def test_the_robot_plans_from_the_bench_seat_to_stow_in_the_default_facility(ime
 
     fac = load(imetro_bundle)
     m, d = fac.model, fac.data
-    joints = [m.joint(n).id for n in fac.manifest["components"]["robot"]["roles"]["joints"]]
+    joints = [m.joint(n).id for n in fac.manifest.components["robot"].roles["joints"]]
     adr = m.jnt_qposadr[joints]
     vmax = [0.15, 0.25, 0.8, 0.8, 1.0, 1.2, 1.2, 1.2]
     amax = [0.3, 0.5, 1.5, 1.5, 2.0, 3.0, 3.0, 3.0]

@@ -172,7 +172,7 @@ def test_message_definitions_are_ros2_humbles():
 def test_facility_recording_matches_the_simulation(imetro, tmp_path, gl_context):
     fac = load(imetro)
     m, d = fac.model, fac.data
-    roles = fac.manifest["components"]["robot"]["roles"]
+    roles = fac.manifest.components["robot"].roles
     ctl = Controller(fac, np.full(len(fac.robot.joints), 1.0))
     path = tmp_path / "run.mcap"
     rec = Recorder(m, d, facility_sources(fac), path, rates=Rates(images=5.0))
@@ -186,7 +186,7 @@ def test_facility_recording_matches_the_simulation(imetro, tmp_path, gl_context)
     rec.close()
     duration = ns(d.time) - min(truth.at)
 
-    cams = {c["name"]: c for c in fac.manifest["cameras"]}
+    cams = {c.name: c for c in fac.manifest.cameras}
     ft = roles["force_torque"]
     wrench_topic = f"/{ft['site']}/wrench"
     topics = types(path)
@@ -257,8 +257,8 @@ def test_facility_recording_matches_the_simulation(imetro, tmp_path, gl_context)
 
     # images: size from the manifest, encodings as RealSense's ROS driver, K from fovy
     for role, cam_name in roles["cameras"].items():
-        width, height = cams[cam_name]["resolution"]
-        f = (height / 2) / math.tan(math.radians(cams[cam_name]["fovy"]) / 2)
+        width, height = cams[cam_name].resolution
+        f = (height / 2) / math.tan(math.radians(cams[cam_name].fovy) / 2)
         base = f"/{role}_camera"
         for kind, encoding, size in (("color", "rgb8", 3), ("aligned_depth_to_color", "16UC1", 2)):
             for (_, img), (_, info) in zip(
@@ -305,8 +305,8 @@ def test_a_recording_with_sensor_noise_reads_as_the_sensors_do(imetro, tmp_path,
 
     fac = load(imetro)
     m, d = fac.model, fac.data
-    ft = fac.manifest["components"]["robot"]["roles"]["force_torque"]
-    cfg = fac.manifest["noise"]["wrench"]
+    ft = fac.manifest.components["robot"].roles["force_torque"]
+    cfg = fac.manifest.noise["wrench"]
     noise = SensorNoise.from_manifest(fac.manifest, 7)
     bias = SensorNoise.from_manifest(fac.manifest, 7)  # the same seed: the same bias
     path = tmp_path / "noisy.mcap"
@@ -330,7 +330,7 @@ def test_a_recording_with_sensor_noise_reads_as_the_sensors_do(imetro, tmp_path,
     np.testing.assert_allclose(errors.mean(axis=0), bias.force_bias, atol=0.2)  # 4 sigma
     assert 0.4 < errors.std(axis=0).mean() / cfg["force_std"] < 1.6
     # images: the noisy camera differs from an ideal render of the same state
-    role, cam_name = next(iter(fac.manifest["components"]["robot"]["roles"]["cameras"].items()))
+    role, cam_name = next(iter(fac.manifest.components["robot"].roles["cameras"].items()))
     _, img = msgs[f"/{role}_camera/color/image_raw"][-1]
     rgb = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width, 3)
     from urdf2mjcf.runner.perception import Camera
@@ -384,7 +384,7 @@ def test_rover_recording_has_the_imu_and_the_tree(mira, tmp_path):
         assert [a.x, a.y, a.z] == s[adr["accelerometer"] : adr["accelerometer"] + 3].tolist()
     wheels = [*rover.roles["wheels"]["left"], *rover.roles["wheels"]["right"]]
     first, last = msgs["/joint_states"][0][1], msgs["/joint_states"][-1][1]
-    assert first.name[:4] == wheels and first.name[4:] == rover.roles["arm_joints"]
+    assert first.name[:4] == wheels and first.name[4:] == list(rover.roles["arm_joints"])
     assert np.all(np.abs(last.position[:4] - first.position[:4]) > 1.0)  # 0.3 m: > 1 rad
     base = m.body(rover.base).name
     _, tf = msgs["/tf"][-1]
@@ -416,12 +416,12 @@ def short_demo(folder: Path, tmp_path: Path) -> Path:
     poses, is under test."""
     fac = load(folder)
     m = fac.model
-    roles = fac.manifest["components"]["robot"]["roles"]
+    roles = fac.manifest.components["robot"].roles
     finger = roles["gripper"]["joints"][0]
     start = fac.data.qpos[m.jnt_qposadr[fac.joint(finger)]]
     shut = start > (roles["gripper"]["open"] + roles["gripper"]["closed"]) / 2
     action = "close" if shut else "open"
-    bag = fac.manifest["components"]["ctb"]["prefix"]
+    bag = fac.manifest.components["ctb"].prefix
     named = (m.geom(g).name for g in range(m.ngeom) if m.geom_bodyid[g] == fac.body(bag))
     geom = next(n for n in named if n)
     spec = {
@@ -437,7 +437,7 @@ def short_demo(folder: Path, tmp_path: Path) -> Path:
 
 def test_facility_demo_records_a_short_run(imetro, tmp_path, gl_context):
     waypoints = short_demo(imetro, tmp_path)
-    roles = load(imetro).manifest["components"]["robot"]["roles"]
+    roles = load(imetro).manifest.components["robot"].roles
     finger = roles["gripper"]["joints"][0]
     path = tmp_path / "demo.mcap"
     res = CliRunner().invoke(

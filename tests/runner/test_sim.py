@@ -169,7 +169,7 @@ def test_roles_and_cameras_come_from_the_bundle(bundles):
     sim = Sim.open(folder)
     manifest = json.loads((folder / "facility.json").read_text())
     want = {n: c["roles"] for n, c in manifest["components"].items() if c.get("roles")}
-    assert sim.roles == want and want
+    assert {n: r.to_json() for n, r in sim.roles.items()} == want and want
     assert sorted(sim.cameras) == sorted(c["name"] for c in manifest["cameras"])
     for entry in manifest["cameras"]:
         cam = sim.cameras[entry["name"]]
@@ -197,7 +197,7 @@ def test_the_demo_steps_through_its_sim(bundles):
         assert isinstance(demo.sim, Sim) and demo.ctl.sim is demo.sim
         assert demo.ctl.on_step is demo.sim.on_step
         # the trial's noise: the facility's seed, as SensorNoise draws it
-        ref = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
+        ref = SensorNoise.from_manifest(fac.manifest, fac.manifest.seed or 0)
         assert demo.noise is demo.sim.noise
         assert demo.noise.force_bias.tobytes() == ref.force_bias.tobytes()
         order: list[str] = []

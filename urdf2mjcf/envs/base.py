@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from ..bundle_manifest import Manifest
 from ..errors import InputError
 from ..facility.recipe import JITTER_KEYS, Ranges, Recipe
 from ..runner.camera import CameraModel
@@ -120,7 +121,7 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
         )
         """The Sim every step goes through; its noise is reseeded by every reset."""
         self.key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
-        placed = [n for n, c in self.manifest["components"].items() if "pose" in c]
+        placed = self.manifest.placed()
         if jitter is None:
             jitter = self.default_jitter()
         self.poses = Poses(m, self.manifest, _ranges(loaded, placed, jitter), self.manifest_path)
@@ -176,7 +177,7 @@ class FacilityEnv(gym.Env[Obs, np.ndarray]):
 
     # -- what a subclass provides -------------------------------------------------
 
-    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, dict, Path]:
+    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, Manifest, Path]:
         """Load the facility: ``(model, data, manifest, manifest path)``."""
         raise NotImplementedError
 

@@ -21,7 +21,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..runner.load import LoadError, Robot, load, lookup
+from ..bundle_manifest import Manifest
+from ..runner.load import LoadError, Robot, load, lookup, robot_roles
 from ..runner.perception import red_mask
 from .base import FacilityEnv, Obs
 from .poses import root_bodies
@@ -49,13 +50,12 @@ class IMetroEnv(FacilityEnv):
     def __init__(self, recipe: str | Path = RECIPE, **kwargs: Any):
         super().__init__(recipe, **kwargs)
 
-    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, dict, Path]:
+    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, Manifest, Path]:
         fac = load(folder)
         self.robot: Robot = fac.robot
         m = fac.model
         path = fac.folder / "facility.json"
-        roles = fac.manifest["components"]["robot"]["roles"]
-        ft = roles.get("force_torque") or {}
+        ft = robot_roles(fac.manifest, path).force_torque or {}
         S = mujoco.mjtObj.mjOBJ_SENSOR
         where = "components.robot.roles.force_torque"
         self._ft = np.concatenate(
@@ -75,9 +75,9 @@ class IMetroEnv(FacilityEnv):
         if self._grasp < 0:
             raise LoadError("needs a grasp (or tool) site", file=path, element="roles.sites")
         # the task's bag: the first free component (by name) with a red handle
-        comps = fac.manifest["components"]
+        comps = fac.manifest.components
         self._target_body, self._target_local = -1, np.zeros(3)
-        for name in sorted(n for n, c in comps.items() if c.get("free")):
+        for name in sorted(n for n, c in comps.items() if c.free):
             for b in root_bodies(m, fac.manifest, name):
                 point = handle_point(m, b)
                 if point is not None and self._target_body < 0:

@@ -23,6 +23,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..bundle_manifest import Manifest
 from ..runner.load import open_facility
 from ..runner.rover.roles import Rover, RoverError, find_rovers
 from .base import FacilityEnv, Obs, tilt
@@ -43,7 +44,7 @@ class Mira3DEnv(FacilityEnv):
         self._rover_name = rover
         super().__init__(recipe, **kwargs)
 
-    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, dict, Path]:
+    def _open(self, folder: Path) -> tuple[mujoco.MjModel, mujoco.MjData, Manifest, Path]:
         _, path, manifest, m, d = open_facility(folder)
         rovers = find_rovers(m, manifest)
         if not rovers:
@@ -55,9 +56,10 @@ class Mira3DEnv(FacilityEnv):
         self.rover: Rover = rovers[name]
         r = self.rover
         J = mujoco.mjtObj.mjOBJ_JOINT
-        roles = r.roles
-        wheels = [*roles["wheels"]["left"], *roles["wheels"]["right"]]
-        arm = [mujoco.mj_name2id(m, J, j) for j in roles["arm_joints"]]
+        spec = r.spec
+        assert spec is not None  # find_rovers gives every rover its roles
+        wheels = [*spec.wheels.left, *spec.wheels.right]
+        arm = [mujoco.mj_name2id(m, J, j) for j in spec.arm_joints]
         self._arm_qpos = m.jnt_qposadr[arm]
         self._qvel = m.jnt_dofadr[[*(mujoco.mj_name2id(m, J, j) for j in wheels), *arm]]
         self._imu = np.r_[
@@ -85,7 +87,7 @@ class Mira3DEnv(FacilityEnv):
         }
 
     def cameras(self) -> Mapping[str, str]:
-        return dict(self.rover.roles.get("cameras") or {})
+        return dict(self.rover.spec.cameras)
 
     def _heading(self) -> np.ndarray:
         x = self.data.xmat[self.rover.base].reshape(3, 3)[:2, 0]

@@ -17,10 +17,12 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from ..bundle_manifest import Manifest
 from ..facility.jitter import jittered
 from ..facility.recipe import Pose2D, Ranges
 from ..runner.load import LoadError
@@ -55,23 +57,23 @@ def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def root_bodies(m: mujoco.MjModel, manifest: Mapping, name: str) -> list[int]:
+def root_bodies(m: mujoco.MjModel, manifest: Manifest, name: str) -> list[int]:
     """The children of the world that belong to component ``name``: those whose names
     start with its prefix (the longest prefix of the manifest that matches wins); for an
     unprefixed component (a robot), the root of the bodies its roles name (its base body,
     its joints)."""
-    comps = manifest["components"]
-    prefix = comps[name].get("prefix", "")
+    comps = manifest.components
+    prefix = comps[name].prefix or ""
     roots = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
     if prefix:
         # hatch_ must not claim hatch_4060_'s bodies: a longer matching prefix wins
-        prefixes = [str(c.get("prefix", "")) for c in comps.values()]
+        prefixes = [c.prefix or "" for c in comps.values()]
 
         def owner(body: str) -> str:
             return max((p for p in prefixes if p and body.startswith(p)), key=len, default="")
 
         return [b for b in roots if owner(m.body(b).name) == prefix]
-    roles = comps[name].get("roles") or {}
+    roles: Mapping[str, Any] = comps[name].roles or {}
     found: set[int] = set()
     B, J = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_JOINT
     named = [(B, roles.get("base")), (J, roles.get("base_joint"))]
@@ -90,18 +92,18 @@ class Poses:
     def __init__(
         self,
         m: mujoco.MjModel,
-        manifest: Mapping,
+        manifest: Manifest,
         ranges: Mapping[str, Ranges],
         manifest_path: Path | None = None,
     ):
         """``ranges``: component -> {position, yaw} or None (never moves), as
         :meth:`Recipe.jitter_ranges` gives them; the model's current body fields and its
         ``qpos0`` are the nominal poses."""
-        comps = manifest["components"]
+        comps = manifest.components
         self.placed: dict[str, Placed] = {}
         self.ranges = dict(ranges)
         for name, comp in sorted(comps.items()):
-            pose = comp.get("pose")
+            pose = comp.pose
             if pose is None:
                 continue  # not placed: the recipe left it out
             bodies = root_bodies(m, manifest, name)
@@ -120,9 +122,9 @@ class Poses:
             fixed = tuple(b for b in bodies if not is_free[b])
             free = tuple(int(m.jnt_qposadr[m.body_jntadr[b]]) for b in bodies if is_free[b])
             self.placed[name] = Placed(
-                name, Pose2D(tuple(pose["xyz"]), float(pose["yaw"])), fixed, free  # type: ignore[arg-type]
+                name, Pose2D(tuple(float(v) for v in pose.xyz), float(pose.yaw)), fixed, free  # type: ignore[arg-type]
             )
-        self.free_names = {n for n, c in comps.items() if c.get("free")}
+        self.free_names = {n for n, c in comps.items() if c.free}
         self._body_pos = m.body_pos.copy()
         self._body_quat = m.body_quat.copy()
 

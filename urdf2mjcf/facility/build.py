@@ -23,6 +23,7 @@ import logging
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import yaml
@@ -30,7 +31,9 @@ import yaml
 from .. import api, bundle, untrusted
 from .. import output as out
 from .. import report as conversion_report
+from ..bundle_manifest import Manifest, Rocks
 from ..calibrate import apply as calib_apply
+from ..demos import DEMO_ROBOT, demo_source
 from ..errors import ForgeError, InputError
 from ..mjcf.document import Document
 from . import attach, fiducials, fold
@@ -55,6 +58,8 @@ class FacilityReport:
     conversion: api.Report
     components: dict[str, Path] = field(default_factory=dict)
     compiled: Any = field(default=None, repr=False, compare=False)
+    written: Manifest | None = field(default=None, repr=False, compare=False)
+    """facility.json as written, typed (``manifest`` is its JSON)."""
     """The ``mujoco.MjModel`` of ``scene.xml`` as written, the one validation stepped
     (folding and tags are passes on the scene in memory, before it is validated)."""
 
@@ -311,17 +316,19 @@ def build_facility(
             fiducials=fiducials.manifest_entries(compiled, placed, moved) if placed else [],
             bundled={"recipe": bundle.RECIPE, "demo": demo},
         )
-        if folded is not None and folded.moved:
-            data[fold.MANIFEST_KEY] = folded.moved
+        if folded is not None and folded.moved:  # facility.json's fold.MANIFEST_KEY
+            data = replace(data, folded_geoms=MappingProxyType(dict(folded.moved)))
         if rocks:
-            data["rocks"] = {"seed": rock_seed, "rocks": [asdict(r) for r in rocks]}
-        write_manifest(stage, data)
+            entries = [asdict(r) for r in rocks]
+            data = replace(data, rocks=Rocks.parse({"seed": rock_seed, "rocks": entries}))
+        data = write_manifest(stage, data)
         out.install_folder(stage, output, previous, overwrite=overwrite, last=MANIFEST)
     return FacilityReport(
         output=output,
         scene=output / "scene.xml",
-        manifest=data,
+        manifest=data.to_json(),
         conversion=report,
+        written=data,
         components={k: output / v for k, v in built.items()},
         compiled=compiled,
     )
@@ -522,12 +529,12 @@ def recipe_text(recipe: Recipe) -> str:
 
 def _write_copies(stage: Path, recipe: Recipe, root: Path) -> str | None:
     """The bundle's copies: ``recipe.yaml`` always, ``demo.yaml`` (the demo file for
-    the recipe's name, else the published one: ``bundle.demo_source``) when the recipe
+    the recipe's name, else the published one: ``urdf2mjcf.demos.demo_source``) when the recipe
     places the robot the demo drives. The demo's name in the bundle, or None."""
     (stage / bundle.RECIPE).write_text(recipe_text(recipe), encoding="utf-8")
-    if not recipe.places(bundle.DEMO_ROBOT):
+    if not recipe.places(DEMO_ROBOT):
         return None
-    source = bundle.demo_source(root, recipe.name)
+    source = demo_source(root, recipe.name)
     if source is None:
         log.info("no demo under %s for %s: the bundle holds none", root, recipe.name)
         return None

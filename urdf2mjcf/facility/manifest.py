@@ -6,17 +6,31 @@ timestamps or absolute paths: two builds with the same seed are identical.
 ``"generator": "make-facility"`` and ``"files"`` (every file the build wrote)
 mark the folder as ours: a rebuild replaces exactly those files.
 ``"schema_version"`` (``urdf2mjcf.bundle``) is the bundle format the runtime reads.
+The manifest is made as the runtime reads it, a :class:`~urdf2mjcf.bundle_manifest.Manifest`,
+and written from it (:meth:`~urdf2mjcf.bundle_manifest.Manifest.dumps`).
 """
 
 from __future__ import annotations
 
-import json
+from dataclasses import replace
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from .. import output
-from ..bundle import BUNDLE_KEY, MANIFEST, SCHEMA_VERSION
-from ..errors import InputError
+from ..bundle import MANIFEST, SCHEMA_VERSION
+from ..bundle_manifest import (
+    BundleFiles,
+    Camera,
+    Component,
+    Counts,
+    Manifest,
+    Pose,
+    Roles,
+    Simulation,
+    freeze,
+)
+from ..errors import BadManifest, InputError
 from .recipe import Pose2D, Recipe
 from .values import number
 
@@ -28,8 +42,8 @@ GENERATOR = "make-facility"
 _JOINT_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
 
 
-def _pose(p: Pose2D) -> dict:
-    return {"xyz": list(p.xyz), "yaw": p.yaw}
+def _pose(p: Pose2D) -> Pose:
+    return Pose((p.xyz[0], p.xyz[1], p.xyz[2]), p.yaw)
 
 
 def _name(m: mujoco.MjModel, objtype: int, i: int) -> str:
@@ -75,28 +89,34 @@ def _check_names(m: mujoco.MjModel, value: Any, where: str) -> None:
 
 
 def _components(
-    m: mujoco.MjModel, placements: dict[str, Pose2D], roles: dict[str, dict]) -> dict:
+    m: mujoco.MjModel, placements: dict[str, Pose2D], roles: dict[str, dict]
+) -> dict[str, Component]:
     out = {}
     joint_names = [_name(m, 3, j) for j in range(m.njnt)]  # mjOBJ_JOINT
     for name in sorted(set(placements) | set(roles)):
-        info: dict = {}
-        if name in placements:
-            info["pose"] = _pose(placements[name])
+        pose = _pose(placements[name]) if name in placements else None
         spec = roles.get(name)
-        if spec is not None:
-            prefix = spec["prefix"]
-            info["prefix"] = prefix
-            if spec.get("free"):
-                info["free"] = True
-            if prefix:
-                info["joints"] = [j for j in joint_names if j.startswith(prefix)]
-            if spec.get("roles"):
-                named = _prefixed(spec["roles"], prefix)
-                _check_names(m, named, f"roles of '{name}'")
-                info["roles"] = named
-            if spec.get("motion_limits"):  # URDF 1.2's, for planners: MuJoCo ignores them
-                info["motion_limits"] = spec["motion_limits"]
-        out[name] = info
+        if spec is None:
+            out[name] = Component(name, pose)
+            continue
+        prefix = spec["prefix"]
+        named = None
+        if spec.get("roles"):
+            named = _prefixed(spec["roles"], prefix)
+            _check_names(m, named, f"roles of '{name}'")
+        try:
+            out[name] = Component(
+                name,
+                pose,
+                prefix=prefix,
+                free=bool(spec.get("free")),
+                joints=tuple(j for j in joint_names if j.startswith(prefix)) if prefix else None,
+                roles=Roles.of(named) if named is not None else None,
+                # URDF 1.2's, for planners: MuJoCo ignores them
+                motion_limits=freeze(spec["motion_limits"]) if spec.get("motion_limits") else None,
+            )
+        except BadManifest as exc:  # roles a runner could not read: refused here already
+            raise InputError(exc.message, file=f"roles of '{name}'", element=exc.key) from None
     return out
 
 
@@ -189,7 +209,7 @@ def manifest(
     compiled: Any = None,
     fiducials: list[dict] | None = None,
     bundled: dict[str, str | None] | None = None,
-) -> dict:
+) -> Manifest:
     """``compiled``: the model of ``scene`` the conversion validated, so it is not
     compiled again (None: compiled here); ``fiducials``: the tags the build added
     (``urdf2mjcf.facility.fiducials.manifest_entries``); ``bundled``: the copies the
@@ -234,59 +254,63 @@ def manifest(
         }
         for s in range(m.nsensor)
     ]
-    cameras = [
-        {
-            "name": _name(m, obj.mjOBJ_CAMERA, c),
-            "body": _name(m, obj.mjOBJ_BODY, int(m.cam_bodyid[c])),
-            "resolution": [int(v) for v in m.cam_resolution[c]],
-            "fovy": float(m.cam_fovy[c]),
-        }
+    cameras = tuple(
+        Camera(
+            name=_name(m, obj.mjOBJ_CAMERA, c),
+            body=_name(m, obj.mjOBJ_BODY, int(m.cam_bodyid[c])),
+            resolution=(int(m.cam_resolution[c][0]), int(m.cam_resolution[c][1])),
+            fovy=float(m.cam_fovy[c]),
+        )
         for c in range(m.ncam)
-    ]
+    )
     recipe_file = None
     if recipe.path is not None:
         try:
             recipe_file = str(Path(recipe.path).resolve().relative_to(root))
         except ValueError:
             recipe_file = Path(recipe.path).name
-    return {
-        "schema_version": SCHEMA_VERSION,
-        "generator": GENERATOR,
-        "recipe": recipe.name,
-        "recipe_file": recipe_file,
-        BUNDLE_KEY: dict(bundled or {}),
-        "xacro": recipe.xacro,
-        "seed": seed,
-        "flags": dict(recipe.flags),
-        "jitter": {k: dict(v) if v is not None else False for k, v in recipe.jitter.items()}
-        if seed is not None
-        else {},
-        "offsets": offsets,
-        "components": _components(m, placements, roles or {}),
-        "component_mjcf": {k: str(v) for k, v in sorted(components.items())},
-        "simulation": {
-            "timestep": float(m.opt.timestep),
-            "integrator": mujoco.mjtIntegrator(int(m.opt.integrator)).name[len("mjINT_") :].lower(),
-        },
-        "counts": {
-            "bodies": int(m.nbody),
-            "joints": int(m.njnt),
-            "dofs": int(m.nv),
-            "actuators": int(m.nu),
-            "sensors": int(m.nsensor),
-            "cameras": int(m.ncam),
-        },
-        "joints": joints,
-        "actuators": actuators,
-        "sensors": sensors,
-        "cameras": cameras,
-        "fiducials": fiducials or [],
-        "noise": dict(recipe.noise),
-        "mechanisms": _mechanisms(m, recipe, root, list(placements)),
-    }
+    return Manifest(
+        schema_version=SCHEMA_VERSION,
+        generator=GENERATOR,
+        recipe=recipe.name,
+        recipe_file=recipe_file,
+        bundle=BundleFiles(present=tuple(bundled or {}), **(bundled or {})),
+        xacro=recipe.xacro,
+        seed=seed,
+        flags=freeze(dict(recipe.flags)),
+        jitter=freeze(
+            {k: dict(v) if v is not None else False for k, v in recipe.jitter.items()}
+            if seed is not None
+            else {}
+        ),
+        offsets=freeze(offsets),
+        components=MappingProxyType(_components(m, placements, roles or {})),
+        component_mjcf=MappingProxyType({k: str(v) for k, v in sorted(components.items())}),
+        simulation=Simulation(
+            timestep=float(m.opt.timestep),
+            integrator=mujoco.mjtIntegrator(int(m.opt.integrator)).name[len("mjINT_") :].lower(),
+        ),
+        counts=Counts(
+            bodies=int(m.nbody),
+            joints=int(m.njnt),
+            dofs=int(m.nv),
+            actuators=int(m.nu),
+            sensors=int(m.nsensor),
+            cameras=int(m.ncam),
+        ),
+        joints=freeze(joints),
+        actuators=freeze(actuators),
+        sensors=freeze(sensors),
+        cameras=cameras,
+        fiducials=freeze(fiducials or []),
+        noise=freeze(dict(recipe.noise)),
+        mechanisms=freeze(_mechanisms(m, recipe, root, list(placements))),
+    )
 
 
-def write_manifest(folder: Path, data: dict) -> None:
-    """``folder/facility.json``, listing every file in ``folder`` (the build's output)."""
-    data = {**data, "generator": GENERATOR, "files": output.list_files(folder)}
-    (folder / MANIFEST).write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+def write_manifest(folder: Path, data: Manifest) -> Manifest:
+    """``folder/facility.json``, listing every file in ``folder`` (the build's output),
+    written from ``data`` (:meth:`Manifest.dumps`); the manifest as written."""
+    data = replace(data, generator=GENERATOR, files=tuple(output.list_files(folder)))
+    (folder / MANIFEST).write_text(data.dumps())
+    return data

@@ -219,7 +219,7 @@ class Rovers(Extension):
             q = d.sensordata[r.orientation : r.orientation + 4]
             gyro = d.sensordata[r.gyro : r.gyro + 3]
             acc = d.sensordata[r.accel : r.accel + 3]
-            site = r.roles.get("imu", {}).get("site", base)
+            site = r.spec.imu.site or base
             self._imu[name].publish(
                 {
                     "header": {"stamp": stamp, "frame_id": site},

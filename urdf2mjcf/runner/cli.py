@@ -404,7 +404,7 @@ def _once(
 
         # Its own noise streams (the facility's settings and seed): recording draws
         # nothing from the demo's, so a recorded run is the run without --record.
-        noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.get("seed") or 0)
+        noise = SensorNoise.from_manifest(fac.manifest, fac.manifest.seed or 0)
         recorder = Recorder(
             fac.model,
             fac.data,

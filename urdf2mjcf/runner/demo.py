@@ -28,11 +28,12 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..bundle_manifest import Pose
 from ..errors import PlanningError
 from . import ik, localize, perception, plan
 from .control import Controller
 from .judge import ContactJudge, stowed
-from .load import Facility, Robot
+from .load import DEMO_ROBOT, Facility, Robot
 from .noise import SensorNoise
 from .sim import Sim
 from .steps import STEPS, StepError
@@ -138,7 +139,7 @@ class Demo:
             fac.data,
             fac.manifest,
             folder=fac.folder,
-            seed=fac.manifest.get("seed") or 0,
+            seed=fac.manifest.seed or 0,
             sensor_noise=bool(noise),
         )
         self.ctl = Controller(fac, self.vmax, monitor=self.judge, sim=self.sim)
@@ -159,8 +160,8 @@ class Demo:
         self.estimates: dict[str, localize.Estimate] = {}
         self._component_of: dict[int, str] = {}
         self._roots: dict[str, int] = {}
-        for comp in sorted(fac.manifest["components"]):
-            if comp == "robot":
+        for comp in sorted(fac.manifest.components):
+            if comp == DEMO_ROBOT:
                 continue
             bodies = fac.component_bodies(comp)
             for b in bodies:
@@ -235,8 +236,9 @@ class Demo:
         for comp in self.estimates:
             b = self._roots[comp]
             rot = self.d.xmat[b].reshape(3, 3)
-            truth[comp] = {"pose": {"xyz": self.d.xpos[b].tolist(), "yaw": _yaw(rot)}}
-        return localize.localization_record(self.estimates, {"components": truth})
+            x, y, z = (float(v) for v in self.d.xpos[b])
+            truth[comp] = Pose((x, y, z), _yaw(rot))
+        return localize.localization_record(self.estimates, truth)
 
     def close(self) -> None:
         for c in self._cams.values():

@@ -1,8 +1,9 @@
 """Load a built facility: the compiled scene and its manifest, with the robot's
 roles resolved to MuJoCo ids (joints, actuators, sensors, cameras, sites).
 
-Only the bundle is read (``urdf2mjcf.bundle``: its files and the manifest's schema
-version), never a facility root or a recipe of a checkout."""
+Only the bundle is read (``urdf2mjcf.bundle.open_bundle``: its files and its
+manifest, read and checked once into the typed ``urdf2mjcf.bundle_manifest.Manifest``),
+never a facility root or a recipe of a checkout."""
 
 from __future__ import annotations
 
@@ -16,9 +17,10 @@ import numpy as np
 
 from .. import bundle, mjcf_input
 from ..bundle import MANIFEST
-from ..errors import LoadError
+from ..bundle_manifest import ArmRoles, Manifest
+from ..demos import DEMO_ROBOT
+from ..errors import BadManifest, LoadError
 from ..limits import TIMESTEP_RANGE
-from ..untrusted import excerpt
 
 
 def lookup(
@@ -43,13 +45,13 @@ def facility_files(path: str | Path) -> tuple[Path, Path]:
     return bundle.facility_files(path, error=LoadError)
 
 
-def read_manifest(path: Path) -> dict:
-    """A facility.json of this schema version as a dict with a ``components`` mapping;
-    LoadError otherwise (``urdf2mjcf.bundle.read_manifest``)."""
+def read_manifest(path: Path) -> Manifest:
+    """A facility.json of this schema version, read and checked once
+    (``urdf2mjcf.bundle.read_manifest``); LoadError naming the key otherwise."""
     return bundle.read_manifest(path, error=LoadError)
 
 
-def bundled_file(folder: Path, manifest: dict, key: str) -> Path | None:
+def bundled_file(folder: Path, manifest: Manifest, key: str) -> Path | None:
     """The bundle's copy ``key`` (``"demo"``, ``"recipe"``) that facility.json names, or
     None when the bundle has none; a LoadError naming facility.json otherwise."""
     return bundle.bundled_file(folder, manifest, key, folder / MANIFEST, error=LoadError)
@@ -74,11 +76,12 @@ def compile_scene(scene: Path) -> mujoco.MjModel:
 
 def open_facility(
     path: str | Path, *, keyframe: str | None = "home"
-) -> tuple[Path, Path, dict, mujoco.MjModel, mujoco.MjData]:
-    """``(folder, manifest path, manifest, model, data)`` of a built facility, at its
+) -> tuple[Path, Path, Manifest, mujoco.MjModel, mujoco.MjData]:
+    """``(folder, manifest path, manifest, model, data)`` of a built facility (its
+    manifest read and checked once, ``urdf2mjcf.bundle.open_bundle``), at its
     ``keyframe`` (when the model has it) after ``mj_forward``."""
-    scene, manifest_path = facility_files(path)
-    manifest = read_manifest(manifest_path)
+    opened = bundle.open_bundle(path, error=LoadError)
+    scene, manifest_path, manifest = opened.scene, opened.manifest_path, opened.manifest
     m = compile_scene(scene)
     d = mujoco.MjData(m)
     if keyframe is not None and mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, keyframe) >= 0:
@@ -121,16 +124,16 @@ class Facility:
     folder: Path
     model: mujoco.MjModel
     data: mujoco.MjData
-    manifest: dict
+    manifest: Manifest
     robot: Robot
 
     def component_bodies(self, name: str) -> set[int]:
         """Ids of the bodies of a component of the manifest (by its prefix; a free body's
         prefix is its body's name)."""
-        comp = self.manifest["components"].get(name)
+        comp = self.manifest.components.get(name)
         if comp is None:
             return set()
-        prefix = comp.get("prefix", "")
+        prefix = comp.prefix or ""
         m = self.model
         return {b for b in range(1, m.nbody) if prefix and m.body(b).name.startswith(prefix)}
 
@@ -146,7 +149,7 @@ class Facility:
     @cached_property
     def _geom_links(self) -> list[str]:
         m = self.model
-        folded = self.manifest.get("folded_geoms") or {}
+        folded = self.manifest.folded_geoms or {}
         return [
             str(folded.get(m.geom(g).name) or m.body(int(m.geom_bodyid[g])).name or "world")
             for g in range(m.ngeom)
@@ -168,32 +171,17 @@ def _subtree(m: mujoco.MjModel, root: int) -> set[int]:
     return out
 
 
-ROBOT_ROLES = "components.robot.roles"
-MOTION_LIMITS = "components.robot.motion_limits"
-MOTION_KEYS = ("acceleration", "deceleration", "jerk")
+ROBOT_ROLES = f"components.{DEMO_ROBOT}.roles"
+"""Where facility.json lists the roles of the robot the demo drives."""
 
 
-def _motion_limits(manifest: dict, path: Path, names: list[str]) -> list[float | None]:
+def _motion_limits(manifest: Manifest, names: list[str]) -> list[float | None]:
     """Per role joint, the lower of its acceleration and deceleration limits in
-    facility.json (None where none is stated; empty when the robot lists none); a
-    LoadError naming the key of a value that is not a positive number."""
-    section = manifest["components"]["robot"].get("motion_limits")
+    facility.json (None where none is stated; empty when the robot lists none; the
+    values were checked as the manifest was read)."""
+    section = manifest.components[DEMO_ROBOT].motion_limits
     if section is None:
         return []
-    if not isinstance(section, dict):
-        raise LoadError("not a mapping of joints", file=path, element=MOTION_LIMITS)
-    for joint, limits in section.items():
-        where = f"{MOTION_LIMITS}.{excerpt(str(joint), 60)}"
-        if not isinstance(limits, dict) or set(limits) - set(MOTION_KEYS) or not limits:
-            raise LoadError(f"a mapping of {', '.join(MOTION_KEYS)}", file=path, element=where)
-        for key, value in limits.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                ok = False
-            else:
-                ok = 0 < value < float("inf")
-            if not ok:
-                message = f"'{excerpt(str(value), 40)}' is not a positive number"
-                raise LoadError(message, file=path, element=f"{where}.{key}")
     out: list[float | None] = []
     for name in names:
         limits = section.get(name) or {}
@@ -202,115 +190,68 @@ def _motion_limits(manifest: dict, path: Path, names: list[str]) -> list[float |
     return out
 
 
-_KINDS: dict[Any, str] = {list: "non-empty list", dict: "mapping", str: "name"}
-
-
-class _Roles:
-    """The robot's roles from facility.json, each field checked as it is read."""
-
-    def __init__(self, m: mujoco.MjModel, manifest: dict, path: Path):
-        robot = manifest["components"].get("robot")
-        roles = robot.get("roles") if isinstance(robot, dict) else None
-        if not isinstance(roles, dict) or not roles:
-            raise LoadError(
-                "the facility has no robot (built with robot=none?); the demo needs one",
-                file=path,
-                element=ROBOT_ROLES,
-            )
-        self.m, self.roles, self.path = m, roles, path
-
-    def value(self, key: str, kind: type | tuple[type, ...], where: str | None = None) -> Any:
-        section: Any = self.roles
-        if where is not None:
-            section = self.roles.get(where)
-            if not isinstance(section, dict):
-                raise LoadError("missing or not a mapping", file=self.path, element=self._at(where))
-        value = section.get(key)
-        if not isinstance(value, kind) or (kind is list and not value):
-            name = f"{where}.{key}" if where else key
-            raise LoadError(
-                f"missing or not a {_KINDS.get(kind, 'number')}",
-                file=self.path,
-                element=self._at(name),
-            )
-        return value
-
-    def ids(self, kind: mujoco.mjtObj, names: Any, at: str) -> np.ndarray:
-        return np.array([self.id(kind, n, at) for n in names], dtype=int)
-
-    def id(self, kind: mujoco.mjtObj, name: Any, at: str) -> int:
-        return lookup(self.m, kind, name, file=self.path, element=self._at(at))
-
-    def _at(self, name: str) -> str:
-        return f"{ROBOT_ROLES}.{name}"
+def robot_roles(manifest: Manifest, path: Path) -> ArmRoles:
+    """The demo's robot's arm roles (checked as the manifest was read); a LoadError
+    naming facility.json and the key when the facility has no robot or its roles are
+    not an arm's."""
+    comp = manifest.components.get(DEMO_ROBOT)
+    if comp is None or not comp.roles:
+        raise LoadError(
+            "the facility has no robot (built with robot=none?); the demo needs one",
+            file=path,
+            element=ROBOT_ROLES,
+        )
+    if comp.arm is not None:
+        return comp.arm
+    try:
+        return ArmRoles.parse(comp.roles, ROBOT_ROLES)
+    except BadManifest as exc:
+        raise LoadError(exc.message, file=path, element=exc.key) from None
 
 
 def load(folder: str | Path, *, keyframe: str | None = "home") -> Facility:
     """Load a built facility (its folder or scene.xml) and resolve the robot's roles."""
     folder, manifest_path, manifest, m, d = open_facility(folder, keyframe=keyframe)
-    r = _Roles(m, manifest, manifest_path)
+    roles = robot_roles(manifest, manifest_path)
     J = mujoco.mjtObj
-    names = r.value("joints", list)
-    joints = r.ids(J.mjOBJ_JOINT, names, "joints")
-    acts = r.ids(J.mjOBJ_ACTUATOR, r.value("actuators", list), "actuators")
-    if len(acts) != len(joints):
-        raise LoadError(
-            "needs one actuator per joint", file=manifest_path, element=r._at("actuators")
-        )
+
+    def ids(kind: mujoco.mjtObj, names: Any, at: str) -> np.ndarray:
+        return np.array([one(kind, n, at) for n in names], dtype=int)
+
+    def one(kind: mujoco.mjtObj, name: Any, at: str) -> int:
+        return lookup(m, kind, name, file=manifest_path, element=f"{ROBOT_ROLES}.{at}")
+
+    names = list(roles.joints)
+    joints = ids(J.mjOBJ_JOINT, names, "joints")
+    acts = ids(J.mjOBJ_ACTUATOR, roles.actuators, "actuators")
     for j, a in zip(joints, acts, strict=True):
         if m.actuator_trnid[a, 0] != j:
             raise LoadError(
                 f"actuator '{m.actuator(a).name}' does not drive joint '{m.joint(j).name}'",
                 file=manifest_path,
-                element=r._at("actuators"),
+                element=f"{ROBOT_ROLES}.actuators",
             )
-    sites = {k: r.id(J.mjOBJ_SITE, v, "sites") for k, v in r.value("sites", dict).items()}
-    cams = {k: r.id(J.mjOBJ_CAMERA, v, "cameras") for k, v in r.value("cameras", dict).items()}
-    grip_open = r.value("open", (int, float), "gripper")
-    grip_closed = r.value("closed", (int, float), "gripper")
+    sites = {k: one(J.mjOBJ_SITE, v, "sites") for k, v in roles.sites.items()}
+    cams = {k: one(J.mjOBJ_CAMERA, v, "cameras") for k, v in roles.cameras.items()}
     root = int(m.body_rootid[m.jnt_bodyid[joints[0]]])
-    arm_names = r.value("arm_joints", list) if "arm_joints" in r.roles else []
-    unknown = [a for a in arm_names if a not in names]
-    if unknown:
-        raise LoadError(
-            f"'{unknown[0]}' is not one of the robot's joints",
-            file=manifest_path,
-            element=r._at("arm_joints"),
-        )
-    vmax = None
-    if "vmax" in r.roles:
-        values = r.value("vmax", list)
-        ok = all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf")
-            for v in values
-        )
-        if len(values) != len(names) or not ok:
-            raise LoadError(
-                f"needs {len(names)} positive speeds, one per joint",
-                file=manifest_path,
-                element=r._at("vmax"),
-            )
-        vmax = np.array(values, float)
-    amax = _motion_limits(manifest, manifest_path, list(names))
+    grip = roles.gripper
     robot = Robot(
-        joint_names=list(names),
+        joint_names=names,
         joints=joints,
         qpos=m.jnt_qposadr[joints].copy(),
         dofs=m.jnt_dofadr[joints].copy(),
         actuators=acts,
         lower=m.jnt_range[joints, 0].copy(),
         upper=m.jnt_range[joints, 1].copy(),
-        gripper_actuator=r.id(
-            J.mjOBJ_ACTUATOR, r.value("actuator", str, "gripper"), "gripper.actuator"
-        ),
-        gripper_joints=r.ids(J.mjOBJ_JOINT, r.value("joints", list, "gripper"), "gripper.joints"),
-        gripper_open=float(grip_open),
-        gripper_closed=float(grip_closed),
+        gripper_actuator=one(J.mjOBJ_ACTUATOR, grip.actuator, "gripper.actuator"),
+        gripper_joints=ids(J.mjOBJ_JOINT, grip.joints, "gripper.joints"),
+        gripper_open=float(grip.open),
+        gripper_closed=float(grip.closed),
         sites=sites,
         cameras=cams,
         bodies=_subtree(m, root),
-        arm=np.array([list(names).index(a) for a in arm_names], int),
-        vmax=vmax,
-        amax=amax,
+        arm=np.array([names.index(a) for a in roles.arm_joints], int),
+        vmax=np.array(roles.vmax, float) if roles.vmax is not None else None,
+        amax=_motion_limits(manifest, names),
     )
     return Facility(folder, m, d, manifest, robot)

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from ..bundle_manifest import Manifest, Pose, thaw
 from .camera import CameraModel
 
 if TYPE_CHECKING:
@@ -341,7 +342,7 @@ def camera_pose(xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
     return t
 
 
-def locate(camera: Camera, d: mujoco.MjData, manifest: Mapping[str, Any]) -> dict[str, Estimate]:
+def locate(camera: Camera, d: mujoco.MjData, manifest: Manifest) -> dict[str, Estimate]:
     """What the runner calls: render ``camera`` (a ``perception.Camera``, with the
     trial's sensor noise if it was given one), and localize every tagged component in
     view from facility.json's ``fiducials``. The camera's pose is the robot's own
@@ -350,22 +351,23 @@ def locate(camera: Camera, d: mujoco.MjData, manifest: Mapping[str, Any]) -> dic
     h, w = camera.size
     model = CameraModel.of(camera.m, camera.cam, w, h)
     pose = camera_pose(d.cam_xpos[camera.cam], d.cam_xmat[camera.cam])
-    return localize(rgb, depth, model, pose, manifest.get("fiducials") or [])
+    return localize(rgb, depth, model, pose, thaw(manifest.fiducials))
 
 
 def localization_record(
-    estimates: Mapping[str, Estimate], manifest: Mapping[str, Any]
+    estimates: Mapping[str, Estimate], truths: Mapping[str, Pose]
 ) -> dict[str, dict[str, float]]:
-    """For a trial's report only: each estimate minus the truth facility.json records
-    (``components.<name>.pose``): ``{"position_error_m", "yaw_error_deg"}``."""
+    """For a trial's report only: each estimate minus its component's true pose
+    (``truths``: component -> pose, the model's, or facility.json's
+    ``Manifest.poses()``): ``{"position_error_m", "yaw_error_deg"}``."""
     out = {}
     for name, e in sorted(estimates.items()):
-        truth = (manifest.get("components") or {}).get(name, {}).get("pose")
+        truth = truths.get(name)
         if truth is None:
             continue
-        dyaw = math.degrees(e.yaw - float(truth["yaw"]))
+        dyaw = math.degrees(e.yaw - float(truth.yaw))
         out[name] = {
-            "position_error_m": float(np.linalg.norm(e.position - np.asarray(truth["xyz"]))),
+            "position_error_m": float(np.linalg.norm(e.position - np.asarray(truth.xyz))),
             "yaw_error_deg": (dyaw + 180.0) % 360.0 - 180.0,
         }
     return out

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..bundle_manifest import Manifest, thaw
 from .camera import pinhole_focal
 
 if TYPE_CHECKING:
@@ -74,12 +75,13 @@ class SensorNoise:
         """(3,) N m, constant in this trial."""
 
     @classmethod
-    def from_manifest(cls, manifest: Mapping[str, Any], seed: int | None) -> SensorNoise:
+    def from_manifest(cls, manifest: Manifest | None, seed: int | None) -> SensorNoise:
         """The noise a built facility's recipe asks for (none for a facility.json
-        without ``noise``), for the trial ``seed``."""
-        cameras = manifest.get("cameras") or []
-        fovy = float(cameras[0]["fovy"]) if cameras else None
-        return cls(manifest.get("noise") or {}, seed, fovy)
+        without ``noise``, or no manifest: ideal sensors), for the trial ``seed``."""
+        if manifest is None:
+            return cls({}, seed, None)
+        fovy = float(manifest.cameras[0].fovy) if manifest.cameras else None
+        return cls(thaw(manifest.noise), seed, fovy)
 
     def focal_px(self, height: int, fovy_deg: float | None = None) -> float:
         """The depth model's focal length (pixels): the config's, else that of a camera

@@ -43,10 +43,11 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import mujoco
 import numpy as np
 
+from ..bundle_manifest import Manifest
 from ..errors import OutputError
 from ..output import Reserved, check_output_file, read_own, reserve
 from .camera import CameraModel
-from .load import Facility, LoadError, lookup
+from .load import ROBOT_ROLES, Facility, LoadError, lookup, robot_roles
 
 if TYPE_CHECKING:
     from .noise import SensorNoise
@@ -109,12 +110,12 @@ class Sources:
 # -- what to record, read from the roles as the runners read them ---------------------------
 
 
-def _free_components(m: mujoco.MjModel, manifest: Mapping) -> list[int]:
+def _free_components(m: mujoco.MjModel, manifest: Manifest) -> list[int]:
     """Bodies of the manifest's free components (a free body's prefix is its name)."""
     out = []
-    for comp in manifest.get("components", {}).values():
-        if isinstance(comp, dict) and comp.get("free") and comp.get("prefix"):
-            b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, comp["prefix"])
+    for comp in manifest.components.values():
+        if comp.free and comp.prefix:
+            b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, comp.prefix)
             if b >= 0:
                 out.append(b)
     return sorted(out)
@@ -130,13 +131,10 @@ def facility_sources(fac: Facility) -> Sources:
     force-torque sensor (``roles.force_torque``), and the free components (the CTB)."""
     m, r = fac.model, fac.robot
     where = fac.folder / "facility.json"
-    roles = fac.manifest["components"]["robot"]["roles"]
+    ft = robot_roles(fac.manifest, where).force_torque
     wrenches = []
-    ft = roles.get("force_torque")
     if ft is not None:
-        at = "components.robot.roles.force_torque"
-        if not isinstance(ft, dict):
-            raise LoadError("not a mapping", file=where, element=at)
+        at = f"{ROBOT_ROLES}.force_torque"
         name: Any = ft.get("site")
         site = lookup(m, mujoco.mjtObj.mjOBJ_SITE, name, file=where, element=at)
         wrenches.append(
@@ -159,7 +157,7 @@ def facility_sources(fac: Facility) -> Sources:
 
 def rover_sources(
     m: mujoco.MjModel,
-    manifest: Mapping,
+    manifest: Manifest,
     rovers: Mapping[str, Rover],
     cameras: Mapping[str, str] | None = None,
 ) -> Sources:
@@ -169,14 +167,14 @@ def rover_sources(
     J = mujoco.mjtObj.mjOBJ_JOINT
     src = Sources(free=_free_components(m, manifest))
     for name, rv in rovers.items():
-        roles = rv.roles
-        names = [*roles["wheels"]["left"], *roles["wheels"]["right"], *roles["arm_joints"]]
+        spec = rv.spec
+        names = [*spec.wheels.left, *spec.wheels.right, *spec.arm_joints]
         src.joints += [lookup(m, J, j) for j in names]
         src.trees.append(int(m.body_rootid[rv.base]))
-        site = lookup(m, mujoco.mjtObj.mjOBJ_SITE, roles["imu"]["site"])
+        site = lookup(m, mujoco.mjtObj.mjOBJ_SITE, spec.imu.site or "")
         src.imus.append(ImuSource(f"/{name}/imu/data", site, rv.accel, rv.gyro, rv.orientation))
     for name, role in (cameras or {}).items():
-        cams = rovers[name].roles.get("cameras", {})
+        cams = rovers[name].spec.cameras
         if role not in cams:
             raise LoadError(
                 f"rover '{name}' has no camera '{role}'; cameras: {', '.join(cams) or 'none'}",

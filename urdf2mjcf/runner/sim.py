@@ -19,12 +19,12 @@ loops the same ``mj_step`` itself, without returning to Python in between.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import mujoco
 
+from ..bundle_manifest import Manifest, Roles
 from .camera import CameraModel
 from .load import open_facility
 from .noise import SensorNoise
@@ -35,17 +35,10 @@ DEFAULT_SIZE = (640, 480)
 """(width, height) of a camera whose model gives no resolution (as perception's)."""
 
 
-def component_roles(manifest: Mapping[str, Any]) -> dict[str, dict]:
+def component_roles(manifest: Manifest) -> dict[str, Roles]:
     """Each component's ``roles`` from facility.json (components without roles left out);
     the roles say what the robot is, the code never does."""
-    comps = manifest.get("components")
-    if not isinstance(comps, Mapping):
-        return {}
-    return {
-        str(name): dict(comp["roles"])
-        for name, comp in comps.items()
-        if isinstance(comp, Mapping) and isinstance(comp.get("roles"), Mapping)
-    }
+    return {n: c.roles for n, c in manifest.components.items() if c.roles is not None}
 
 
 class Sim:
@@ -55,14 +48,14 @@ class Sim:
         self,
         m: mujoco.MjModel,
         d: mujoco.MjData,
-        manifest: dict[str, Any],
+        manifest: Manifest,
         *,
         folder: Path | None = None,
         manifest_path: Path | None = None,
         seed: int | None = None,
         sensor_noise: bool = True,
     ) -> None:
-        """``manifest``: the bundle's facility.json, already read and checked (load.py),
+        """``manifest``: the bundle's facility.json, read and checked (``bundle.open_bundle``),
         ``manifest_path`` its file (for errors naming it);
         ``seed``: the trial's noise seed (None: 0, as SensorNoise takes it);
         ``sensor_noise``: False gives ideal sensors (noise that passes data through)."""
@@ -154,7 +147,7 @@ class Sim:
         return self.noise
 
     def _noise(self, seed: int | None) -> SensorNoise:
-        return SensorNoise.from_manifest(self.manifest if self.sensor_noise else {}, seed)
+        return SensorNoise.from_manifest(self.manifest if self.sensor_noise else None, seed)
 
     def camera(self, name: str, size: tuple[int, int] | None = None) -> CameraModel:
         """The camera model of the model camera ``name`` rendering ``size`` (width,

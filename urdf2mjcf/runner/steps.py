@@ -50,6 +50,7 @@ from .checks import (
 )
 from .control import path_duration
 from .hinge import arc, hinge_axis, turned
+from .load import DEMO_ROBOT
 from .task_kinds import GRIPPER, HINGE, JOINTS, LOCALIZE, LOOK, POSE, RELATIVE, WAIT, TaskKind
 
 
@@ -282,7 +283,7 @@ class Localize(Step):
     settles = False
 
     def check(self, step: dict, at: str, fac: Any, w: Waypoints) -> None:
-        comps = sorted(c for c in fac.manifest["components"] if c != "robot")
+        comps = sorted(c for c in fac.manifest.components if c != DEMO_ROBOT)
         if step["component"] not in comps:
             message = f"'{step['component']}' is not a component; components: "
             raise w.fail(f"{at}.component", message + ", ".join(comps))

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..bundle_manifest import thaw
 from .executors import Kind, removed_on_stop, run_jobs
 
 
@@ -111,7 +112,7 @@ def run_trial(job: TrialJob) -> dict:
                 workers=1,  # one CPU per trial: the executor runs the trials side by side
                 parts=_parts(job),
             )
-            offsets = rep.manifest.get("offsets")
+            offsets = thaw(rep.written.offsets) if rep.written is not None else None
             res = run_demo(rep.output, job.waypoints, frames=frames, log=lines.append)
             result = res.to_json()
         except Exception as exc:  # a crash fails this seed, reported with the others

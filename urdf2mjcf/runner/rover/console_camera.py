@@ -14,6 +14,7 @@ from concurrent.futures import Future
 import mujoco
 import numpy as np
 
+from ...bundle_manifest import Manifest
 from ...errors import CameraUnavailable
 
 WIDTH = 320
@@ -24,16 +25,14 @@ WAIT_S = 30.0
 """Longest a request waits for its image."""
 
 
-def image_sizes(m: mujoco.MjModel, manifest: Mapping) -> dict[int, tuple[int, int]]:
+def image_sizes(m: mujoco.MjModel, manifest: Manifest) -> dict[int, tuple[int, int]]:
     """Camera id -> (width, height) of its console image: ``WIDTH`` across, the aspect of
     its resolution in facility.json (its sensor's), else ``HEIGHT`` down."""
     aspect: dict[str, float] = {}
-    for cam in manifest.get("cameras") or []:
-        try:
-            w, h = cam["resolution"]
-            aspect[str(cam["name"])] = float(h) / float(w)
-        except (KeyError, TypeError, ValueError, ZeroDivisionError):
-            continue  # a hand-edited entry: the default size
+    for cam in manifest.cameras:
+        w, h = cam.resolution
+        if w > 0:  # else no resolution: the default size
+            aspect[cam.name] = float(h) / float(w)
     out = {}
     for cid in range(m.ncam):
         a = aspect.get(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_CAMERA, cid) or "")

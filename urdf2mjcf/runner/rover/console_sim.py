@@ -75,11 +75,11 @@ class ConsoleSim:
         for name in names or list(sim.rovers):
             r = sim.rover(name)
             cams = {}
-            for role, cam in (r.roles.get("cameras") or {}).items():
-                cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, str(cam))
+            for role, cam in r.spec.cameras.items():
+                cid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, cam)
                 if cid >= 0:
-                    cams[str(role)] = cid
-            joints = [_strip(str(j), r.prefix) for j in r.roles.get("arm_joints", [])]
+                    cams[role] = cid
+            joints = [_strip(j, r.prefix) for j in r.spec.arm_joints]
             self.rovers[name] = _Driven(r, joints, _limits(m, r), cams)
         self._odometry_started()
         self.error: BaseException | None = None

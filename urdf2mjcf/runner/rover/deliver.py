@@ -118,8 +118,8 @@ def jitter(sim: RoverSim, grains: Grains, seed: int) -> None:
 def _obstacles(sim: RoverSim) -> list[tuple[float, float, float]]:
     """The rocks of facility.json (half their extent), the printer (0.6 m) and the layer
     it will print ahead of it (0.4 m)."""
-    rocks = (sim.manifest.get("rocks") or {}).get("rocks") or []
-    out = [(float(r["x"]), float(r["y"]), 0.45 * float(r["size"])) for r in rocks]
+    rocks = sim.manifest.rocks.rocks if sim.manifest.rocks is not None else ()
+    out = [(float(r.x), float(r.y), 0.45 * float(r.size)) for r in rocks]
     prn = sim.rovers["printer"].base
     p, rot = sim.d.xpos[prn], sim.d.xmat[prn].reshape(3, 3)
     layer = p + rot @ np.array([AHEAD, 0.0, 0.0])

@@ -1,14 +1,18 @@
 """The rovers of a built facility: the components of ``facility.json`` whose roles name
-wheels, resolved to MuJoCo ids and sensor addresses."""
+wheels, resolved to MuJoCo ids and sensor addresses. Their roles were checked as
+facility.json was read (``urdf2mjcf.bundle_manifest.RoverRoles``: a wheel radius or
+track in (0, ``WHEEL_LENGTH_MAX``] m, every name a string)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from ...bundle_manifest import Manifest, RoverRoles
 from ...errors import RoverError
 from ..load import LoadError, lookup
 
@@ -18,19 +22,6 @@ def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
         return lookup(m, kind, name)
     except LoadError as exc:
         raise RoverError(str(exc)) from None
-
-
-LENGTH_MAX = 100.0
-"""m: the largest wheel radius or track a roles file may give."""
-
-
-def _length(value: object, rover: str, key: str) -> float:
-    """A wheel radius or track from facility.json: a finite length in (0, LENGTH_MAX];
-    every wheel command divides by it."""
-    x = float(value)  # type: ignore[arg-type]  # TypeError/ValueError: malformed roles
-    if not 0.0 < x <= LENGTH_MAX:  # also NaN
-        raise RoverError(f"{rover}: {key} {x:g} m is not above 0 and at most {LENGTH_MAX:g}")
-    return x
 
 
 def _sensor_adr(m: mujoco.MjModel, name: str) -> int:
@@ -65,49 +56,45 @@ class Rover:
     """Command range of the wheel servos, rad/s."""
     wheel_qpos: np.ndarray
     """qpos addresses of the wheel joints (left, then right)."""
-    roles: dict = field(default_factory=dict, repr=False)
+    spec: RoverRoles = field(repr=False)
+    """Its roles, checked as facility.json was read (the names above come from them)."""
+    roles: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    """Every role facility.json lists for it."""
 
 
-def find_rovers(m: mujoco.MjModel, manifest: Mapping) -> dict[str, Rover]:
-    """The components of the manifest whose roles name wheels, by component name."""
+def find_rovers(m: mujoco.MjModel, manifest: Manifest) -> dict[str, Rover]:
+    """The components of the manifest whose roles name wheels (their rover roles were
+    checked as facility.json was read), by component name; a RoverError naming a role
+    the scene lacks."""
     A = mujoco.mjtObj.mjOBJ_ACTUATOR
+    J = mujoco.mjtObj.mjOBJ_JOINT
     out: dict[str, Rover] = {}
-    for name, comp in sorted(manifest.get("components", {}).items()):
-        roles = comp.get("roles") or {}
-        if "wheel_actuators" not in roles:
-            continue
-        acts = roles["wheel_actuators"]
-        left = np.array([_id(m, A, a) for a in acts["left"]])
-        right = np.array([_id(m, A, a) for a in acts["right"]])
+    for name, spec in manifest.rovers().items():
+        left = np.array([_id(m, A, a) for a in spec.wheel_actuators.left])
+        right = np.array([_id(m, A, a) for a in spec.wheel_actuators.right])
         lo = float(max(m.actuator_ctrlrange[np.r_[left, right], 0]))
         hi = float(min(m.actuator_ctrlrange[np.r_[left, right], 1]))
-        imu = roles["imu"]
-        radius = _length(roles["wheel_radius"], name, "wheel_radius")
-        track = _length(roles["track"], name, "track")
+        comp = manifest.components[name]
         out[name] = Rover(
             name=name,
-            prefix=comp.get("prefix", ""),
-            base=_id(m, mujoco.mjtObj.mjOBJ_BODY, roles["base"]),
+            prefix=comp.prefix or "",
+            base=_id(m, mujoco.mjtObj.mjOBJ_BODY, spec.base),
             left=left,
             right=right,
-            left_vel=np.array([_sensor_adr(m, s) for s in roles["wheel_sensors"]["left"]]),
-            right_vel=np.array([_sensor_adr(m, s) for s in roles["wheel_sensors"]["right"]]),
-            radius=radius,
-            track=track,
-            arm=np.array([_id(m, A, a) for a in roles["arm_actuators"]]),
-            arm_qpos=np.array(
-                [m.jnt_qposadr[_id(m, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in roles["arm_joints"]]
-            ),
-            accel=_sensor_adr(m, imu["accelerometer"]),
-            gyro=_sensor_adr(m, imu["gyro"]),
-            orientation=_sensor_adr(m, imu["orientation"]),
+            left_vel=np.array([_sensor_adr(m, s) for s in spec.wheel_sensors.left]),
+            right_vel=np.array([_sensor_adr(m, s) for s in spec.wheel_sensors.right]),
+            radius=float(spec.wheel_radius),
+            track=float(spec.track),
+            arm=np.array([_id(m, A, a) for a in spec.arm_actuators]),
+            arm_qpos=np.array([m.jnt_qposadr[_id(m, J, j)] for j in spec.arm_joints]),
+            accel=_sensor_adr(m, spec.imu.accelerometer),
+            gyro=_sensor_adr(m, spec.imu.gyro),
+            orientation=_sensor_adr(m, spec.imu.orientation),
             wheel_ctrl=(lo, hi),
             wheel_qpos=np.array(
-                [
-                    m.jnt_qposadr[_id(m, mujoco.mjtObj.mjOBJ_JOINT, j)]
-                    for j in [*roles["wheels"]["left"], *roles["wheels"]["right"]]
-                ]
+                [m.jnt_qposadr[_id(m, J, j)] for j in [*spec.wheels.left, *spec.wheels.right]]
             ),
-            roles=roles,
+            spec=spec,
+            roles=comp.roles or {},
         )
     return out

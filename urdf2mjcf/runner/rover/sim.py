@@ -36,13 +36,8 @@ class RoverSim:
         sim = Sim(self.m, self.d, self.manifest, folder=self.folder, manifest_path=path)
         self.sim = sim
         """The one Sim the rovers step through."""
-        try:
+        try:  # the roles were checked as facility.json was read; the scene may lack a name
             self.rovers = find_rovers(self.m, self.manifest)
-        except (AttributeError, KeyError, TypeError, ValueError, IndexError) as exc:
-            # a hand-edited facility.json: name the file, not a traceback
-            raise RoverError(
-                f"malformed wheel roles ({type(exc).__name__}: {exc})", file=path
-            ) from None
         except LoadError as exc:
             raise RoverError(exc.detail, file=path, element="components.*.roles") from None
         dt = float(self.m.opt.timestep)
