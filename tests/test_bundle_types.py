@@ -104,6 +104,28 @@ CORRUPTIONS = {
         "is not a positive number",
     ),
     "seed-type": (_set("seed", value=1.5), "seed", "is not a seed"),
+    "noise-not-a-number": (
+        _set("noise", "rgb", "read_std", value="x"),
+        "noise.rgb.read_std",
+        "is not a number in 0 .. 255",
+    ),
+    "noise-out-of-range": (
+        _set("noise", "exposure", "gain", value=5),
+        "noise.exposure.gain",
+        "is not a number in 0 .. 1",
+    ),
+    "noise-channel": (_set("noise", "smell", value={}), "noise.smell", "not a sensor channel"),
+    "fiducial-size": (
+        _set("fiducials", 0, "size", value="big"),
+        "fiducials[0].size",
+        "is not a positive number",
+    ),
+    "fiducial-matrix": (
+        _set("fiducials", 0, "pose_in_component", "matrix", value=[1]),
+        "fiducials[0].pose_in_component.matrix",
+        "not a list of 9 numbers",
+    ),
+    "fiducial-id": (_set("fiducials", 1, "id", value=True), "fiducials[1].id", "is not a tag id"),
     "bundle-escape": (
         _set("bundle", "demo", value="../demo.yaml"),
         "bundle.demo",

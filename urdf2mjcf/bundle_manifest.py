@@ -33,6 +33,7 @@ from typing import Any
 from . import untrusted
 from .errors import BadManifest as ManifestError  # noqa: N814
 from .errors import BundleError, ForgeError
+from .limits import NOISE_CHANNELS, NOISE_RANGES, TAG_COUNT
 
 Json = Any
 """A frozen JSON value: str, int, float, bool, None, a tuple or a read-only mapping."""
@@ -78,9 +79,7 @@ def _shown(value: Any, n: int = 40) -> str:
 
 def is_number(value: Any) -> bool:
     """A finite int or float, not a bool."""
-    return (
-        isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-    )
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _number(value: Any, key: str, *, positive: bool = False) -> float:
@@ -217,8 +216,8 @@ class ArmRoles:
             unknown = [a for a in arm if a not in joints]
             if unknown:
                 raise ManifestError(
-                    f"{key}.arm_joints", f"'{untrusted.excerpt(unknown[0], 60)}' is not one "
-                    "of the robot's joints"
+                    f"{key}.arm_joints",
+                    f"'{untrusted.excerpt(unknown[0], 60)}' is not one of the robot's joints",
                 )
         vmax = None
         if "vmax" in roles:
@@ -251,8 +250,9 @@ class Sides:
     @classmethod
     def parse(cls, value: Any, key: str) -> Sides:
         section = _mapping(value, key, "missing or not a mapping of left and right")
-        return cls(_names(section.get("left"), f"{key}.left"),
-                   _names(section.get("right"), f"{key}.right"))
+        return cls(
+            _names(section.get("left"), f"{key}.left"), _names(section.get("right"), f"{key}.right")
+        )
 
 
 @dataclass(frozen=True)
@@ -635,6 +635,53 @@ def check_schema_version(data: Mapping[str, Any]) -> None:
     raise ManifestError("schema_version", f"{said}; rebuild it with make-facility")
 
 
+def _noise(value: Mapping[str, Any]) -> Mapping[str, Any]:
+    """facility.json's ``noise``: channel -> false, or its settings, each a number in the
+    range make-facility checks a recipe's against (:data:`urdf2mjcf.limits.NOISE_RANGES`)."""
+    for channel, settings in value.items():
+        key = f"noise.{channel}"
+        if channel not in NOISE_CHANNELS:
+            raise ManifestError(key, f"not a sensor channel ({', '.join(NOISE_CHANNELS)})")
+        if settings is None or settings is False:
+            continue
+        for field_name, v in _mapping(settings, key, "not a mapping of settings, or false").items():
+            where = f"{key}.{field_name}"
+            if field_name not in NOISE_RANGES:
+                raise ManifestError(where, "not a noise setting")
+            if v is None and field_name == "focal_px":  # the rendering camera's
+                continue
+            low, high, low_open = NOISE_RANGES[field_name]
+            if not is_number(v) or v > high or v < low or (low_open and v == low):
+                bound = f"above {low:g}" if low_open else f"{low:g}"
+                raise ManifestError(where, f"{_shown(v)} is not a number in {bound} .. {high:g}")
+    return value
+
+
+def _fiducials(value: list) -> list:
+    """facility.json's ``fiducials``: each tag's id, size, component and, where the
+    runtime localizes by it, its pose on the component (xyz, a 3 x 3 matrix)."""
+    for i, tag in enumerate(value):
+        key = f"fiducials[{i}]"
+        tag = _mapping(tag, key)
+        ident = tag.get("id")
+        if isinstance(ident, bool) or not isinstance(ident, int) or not 0 <= ident < TAG_COUNT:
+            raise ManifestError(
+                f"{key}.id", f"{_shown(ident)} is not a tag id (0 .. {TAG_COUNT - 1})"
+            )
+        _number(tag.get("size"), f"{key}.size", positive=True)
+        _name(tag.get("component"), f"{key}.component")
+        if "pose_in_component" in tag:
+            pose = _mapping(tag["pose_in_component"], f"{key}.pose_in_component")
+            for name, n in (("xyz", 3), ("matrix", 9)):
+                v = pose.get(name)
+                where = f"{key}.pose_in_component.{name}"
+                if not isinstance(v, (list, tuple)) or len(v) != n:
+                    raise ManifestError(where, f"not a list of {n} numbers")
+                for j, x in enumerate(v):
+                    _number(x, f"{where}[{j}]")
+    return value
+
+
 def _section(data: Mapping[str, Any], key: str, kind: type, default: Any) -> Any:
     value = data.get(key, default)
     if value is None:
@@ -665,8 +712,7 @@ def from_json(data: Any) -> Manifest:
         for k, v in off.items():
             _number(v, f"offsets.{name}.{k}")
     cameras = tuple(
-        Camera.parse(c, f"cameras[{i}]")
-        for i, c in enumerate(_section(data, "cameras", list, []))
+        Camera.parse(c, f"cameras[{i}]") for i, c in enumerate(_section(data, "cameras", list, []))
     )
     sim = data.get("simulation")
     simulation = None
@@ -719,8 +765,8 @@ def from_json(data: Any) -> Manifest:
         actuators=freeze(_section(data, "actuators", list, [])),
         sensors=freeze(_section(data, "sensors", list, [])),
         cameras=cameras,
-        fiducials=freeze(_section(data, "fiducials", list, [])),
-        noise=freeze(_section(data, "noise", Mapping, {})),
+        fiducials=freeze(_fiducials(_section(data, "fiducials", list, []))),
+        noise=freeze(_noise(_section(data, "noise", Mapping, {}))),
         mechanisms=freeze(_section(data, "mechanisms", list, [])),
         folded_geoms=folded,
         rocks=rocks,

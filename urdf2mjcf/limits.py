@@ -24,3 +24,25 @@ second is over 100,000 steps, above it no contact is stable."""
 TAG_FAMILY = "tag36h11"
 TAG_COUNT = 587
 """Ids of the 36h11 family: 0 .. 586."""
+
+NOISE_CHANNELS = ("depth", "rgb", "exposure", "wrench")
+"""The sensor noise channels (``urdf2mjcf.runner.noise``)."""
+NOISE_RANGES: dict[str, tuple[float, float, bool]] = {
+    # field: (low, high, low_open). Each is >= 0 (> 0 for a divisor) and bounded where a
+    # larger value stops describing a sensor: a gain or light factor of 1 +- x with
+    # x > 1 would turn negative, images are 0..255 DN, a camera's focal length and
+    # baseline are those of a real one.
+    "subpixel": (0.0, 100.0, False),
+    "baseline": (0.0, 10.0, True),  # m
+    "focal_px": (0.0, 1e6, True),  # px
+    "read_std": (0.0, 255.0, False),  # DN
+    "shot_gain": (0.0, 255.0, False),  # DN
+    "gain": (0.0, 1.0, False),
+    "light": (0.0, 1.0, False),
+    "force_std": (0.0, 1e5, False),  # N
+    "torque_std": (0.0, 1e4, False),  # N m
+    "force_bias": (0.0, 1e5, False),
+    "torque_bias": (0.0, 1e4, False),
+}
+"""A sensor noise setting -> (low, high, low_open): a recipe's ``noise:`` (make-facility)
+and a bundle's ``noise`` (the runtime) are checked against these; every value finite."""

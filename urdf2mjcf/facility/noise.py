@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..limits import NOISE_RANGES
 from ..schema import Source
 from .values import number
 
@@ -37,24 +38,9 @@ DEFAULTS: dict[str, dict[str, float | None]] = {
     "wrench": {"force_std": 0.5, "torque_std": 0.02, "force_bias": 2.0, "torque_bias": 0.1},
 }
 CHANNELS = tuple(DEFAULTS)
-RANGES: dict[str, tuple[float, float, bool]] = {
-    # field: (low, high, low_open). Each is >= 0 (> 0 for a divisor) and bounded where a
-    # larger value stops describing a sensor: a gain or light factor of 1 +- x with
-    # x > 1 would turn negative, images are 0..255 DN, a camera's focal length and
-    # baseline are those of a real one.
-    "subpixel": (0.0, 100.0, False),
-    "baseline": (0.0, 10.0, True),  # m
-    "focal_px": (0.0, 1e6, True),  # px
-    "read_std": (0.0, 255.0, False),  # DN
-    "shot_gain": (0.0, 255.0, False),  # DN
-    "gain": (0.0, 1.0, False),
-    "light": (0.0, 1.0, False),
-    "force_std": (0.0, 1e5, False),  # N
-    "torque_std": (0.0, 1e4, False),  # N m
-    "force_bias": (0.0, 1e5, False),
-    "torque_bias": (0.0, 1e4, False),
-}
-"""Each setting's range (every value is finite: ``urdf2mjcf.facility.values.number``)."""
+RANGES = NOISE_RANGES
+"""Each setting's range (every value is finite: ``urdf2mjcf.facility.values.number``);
+the runtime checks a bundle's against the same (``urdf2mjcf.limits``)."""
 
 
 def parse_noise(value: Any, src: Source, key: str = "noise") -> dict[str, dict | bool]:
