@@ -56,20 +56,33 @@ def _layer(module: str) -> str:
     return "support"
 
 
+def _from_target(module: str, path: Path, node: ast.ImportFrom) -> str:
+    """The module ``from X import ...`` in ``module`` (file ``path``) names, relative
+    imports resolved."""
+    if not node.level:
+        return node.module or ""
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _plant(package: Path, files: dict[str, str]) -> dict[str, Path]:
+    """A fake package of ``files`` (path -> text) under ``package``; its modules."""
+    for name, text in files.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text)
+    return _modules(package)
+
+
 def _imports(module: str, path: Path, modules: Iterable[str] = ()) -> set[str]:
     """Modules of the package that ``module`` imports (relative imports resolved), anywhere
     in its file. With ``modules`` (every module of the package), ``from p import name``
     is module ``p.name`` when there is one, else ``p``, whose ``__init__`` defines name."""
-    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
     known = set(modules)
     found = set()
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
-                target = ".".join(base + ([node.module] if node.module else []))
-            else:
-                target = node.module or ""
+            target = _from_target(module, path, node)
             if target.split(".")[0] != "urdf2mjcf":
                 continue
             for a in node.names:
@@ -190,11 +203,9 @@ def test_the_circle_check_catches_a_planted_circle(tmp_path):
         "runner/c.py": "from ..runner import a\n\nThing = int\n",
         "runner/d.py": "from .a import x\n",
     }
-    for name, text in files.items():
-        (package / name).parent.mkdir(parents=True, exist_ok=True)
-        (package / name).write_text(text)
+    modules = _plant(package, files)
     in_layer = ["urdf2mjcf.runner.a", "urdf2mjcf.runner.b", "urdf2mjcf.runner.c"]
-    assert _circles(_graph(_modules(package))) == [
+    assert _circles(_graph(modules)) == [
         ["urdf2mjcf.fmt", "urdf2mjcf.ir", "urdf2mjcf.fmt"],
         [*in_layer, "urdf2mjcf.runner.a"],
     ]
@@ -274,18 +285,13 @@ def _runs(module: str, path: Path, modules: dict[str, Path]) -> list[str]:
     """Other passes whose ``run`` ``module`` calls: ``from <pass> import run``, or
     ``<alias>.run`` where ``alias`` is a module of another pass."""
     mine = _pass_of(module)
-    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
     aliases: dict[str, str] = {}
     found = []
     tree = ast.parse(path.read_text())
     for node in ast.walk(tree):
         if not isinstance(node, ast.ImportFrom):
             continue
-        if node.level:
-            base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
-            target = ".".join(base + ([node.module] if node.module else []))
-        else:
-            target = node.module or ""
+        target = _from_target(module, path, node)
         for a in node.names:
             sub = f"{target}.{a.name}"
             other = _pass_of(sub if sub in modules else target)
@@ -326,10 +332,7 @@ def test_the_no_pass_runs_another_check_catches_one(tmp_path):
         "passes/b.py": "from .emit import run as emit_run\n",
         "passes/c.py": "from . import emit\n\nX = emit.WORLD\n",
     }
-    for name, text in files.items():
-        (package / name).parent.mkdir(parents=True, exist_ok=True)
-        (package / name).write_text(text)
-    modules = _modules(package)
+    modules = _plant(package, files)
     assert _runs("urdf2mjcf.passes.a", modules["urdf2mjcf.passes.a"], modules) == [
         "urdf2mjcf.passes.emit"
     ]

@@ -198,7 +198,7 @@ def _build(
     model = meshes.run(model, options.meshes)
     model = collision.run(model, options.collision)
     model = inertia.run(model, options.inertia)
-    model = actuators.run(model, options.actuators, _robot_tree, compiles)
+    model = actuators.run(model, options.actuators, robot_tree, compiles)
     model = sensors.run(model, options.sensors)
     result = emit.run(model, options.emit)
     result = extension.run(result, model, replace(options.extension, resolver=doc.resolver))
@@ -210,7 +210,7 @@ def _build(
     return doc, replace(model, notes=model.notes + result.notes), result
 
 
-def _robot_tree(model: Model, floating_base: bool) -> Document:
+def robot_tree(model: Model, floating_base: bool) -> Document:
     """The robot as emit writes it, which the actuators pass compiles to size gains."""
     return emit.run(model, emit.EmitConfig(floating_base=floating_base))
 

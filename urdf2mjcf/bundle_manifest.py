@@ -652,8 +652,8 @@ def _noise(value: Mapping[str, Any]) -> Mapping[str, Any]:
                 continue
             low, high, low_open = NOISE_RANGES[field_name]
             if not is_number(v) or v > high or v < low or (low_open and v == low):
-                bound = f"above {low:g}" if low_open else f"{low:g}"
-                raise ManifestError(where, f"{_shown(v)} is not a number in {bound} .. {high:g}")
+                bound = f"above {low:g}, up to {high:g}" if low_open else f"{low:g} .. {high:g}"
+                raise ManifestError(where, f"{_shown(v)} is not a number in {bound}")
     return value
 
 

@@ -21,7 +21,7 @@ from .cli_common import (
     shared_params,
 )
 from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
-from .command_runner import run_command
+from .command_runner import DefaultGroup, run_command
 from .errors import ConversionError
 from .ir import COLLISION_SHAPES, Note
 from .runner.live_options import allow_origin_option, allow_origin_param, check_allow_origin
@@ -376,7 +376,7 @@ COMMANDS: dict[str, tuple[str, str, str | None]] = {
 imported when it runs, so that ``--help`` and a conversion import none of the others."""
 
 
-class _Commands(click.Group):
+class _Commands(DefaultGroup):
     """The sub-commands of :data:`COMMANDS`. A first argument that names none is a
     conversion's: ``urdf2mjcf SOURCE ...`` is ``urdf2mjcf convert SOURCE ...``, the
     spelling from before sub-commands, which keeps working (a SOURCE file named like a
@@ -398,14 +398,10 @@ class _Commands(click.Group):
             command = extras.requiring(extra, command)
         return with_debug_option(command)
 
-    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        if not args or (args[0] not in COMMANDS and args[0] not in ctx.help_option_names):
-            args = ["convert", *args]  # the short spelling of a conversion
-        return super().parse_args(ctx, args)
-
 
 urdf2mjcf_group = _Commands(
     "urdf2mjcf",
+    default="convert",
     help="""Convert robot descriptions into MuJoCo MJCF, check, show, serve and calibrate
     the result.
 

@@ -56,15 +56,42 @@ def _add_debug_option(command: click.Command) -> None:
         )
 
 
-def _command_path(command: click.Command, ctx: click.Context | None) -> str:
-    """The command as typed, root by its own name: ``urdf2mjcf batch`` (a sub-command's
-    help is where its options are), whatever ``argv[0]`` was."""
+def command_path(ctx: click.Context) -> str:
+    """The command as typed, its root by its own name: ``urdf2mjcf batch`` (a
+    sub-command's help is where its options are), whatever ``argv[0]`` was."""
     names = []
-    while ctx is not None and ctx.parent is not None:
+    while ctx.parent is not None:
         if ctx.info_name:  # a hidden default sub-command has none
             names.append(ctx.info_name)
         ctx = ctx.parent
-    return " ".join([command.name or "", *reversed(names)]).strip()
+    return " ".join([ctx.command.name or "", *reversed(names)]).strip()
+
+
+class DefaultGroup(click.Group):
+    """A group whose first argument, when it names none of its sub-commands (nor asks
+    for help), goes to the sub-command ``default``: a command's spelling from before it
+    had sub-commands keeps working. A ``hidden_default`` is left out of the command's
+    path in messages (it stands for the group itself)."""
+
+    def __init__(self, *args: Any, default: str, hidden_default: bool = False, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self.default = default
+        self.hidden_default = hidden_default
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if not args or (
+            args[0] not in self.list_commands(ctx) and args[0] not in ctx.help_option_names
+        ):
+            args = [self.default, *args]
+        return super().parse_args(ctx, args)
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        name, command, rest = super().resolve_command(ctx, args)
+        if self.hidden_default and name == self.default:
+            name = ""  # its errors say `rover-drive`, not `rover-drive legacy`
+        return name, command, rest
 
 
 def run_command(
@@ -110,7 +137,8 @@ def run_command(
         click.echo("error: aborted", err=True)
         sys.exit(2)
     except click.UsageError as exc:
-        hint = f" (see '{_command_path(command, exc.ctx)} --help')"
+        path = command_path(exc.ctx) if exc.ctx is not None else command.name
+        hint = f" (see '{path} --help')"
         click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
         sys.exit(2)
     except click.ClickException as exc:

@@ -16,6 +16,7 @@ from typing import Any
 
 import click
 
+from .command_runner import command_path
 from .errors import MissingExtraError
 
 EXTRAS: dict[str, tuple[str, ...]] = {
@@ -69,7 +70,7 @@ def requiring(extra: str, command: click.Command) -> click.Command:
     @functools.wraps(body)
     def checked(*args: Any, **kwargs: Any) -> Any:
         ctx = click.get_current_context(silent=True)
-        require(extra, ctx.command_path if ctx is not None else command.name or "this command")
+        require(extra, command_path(ctx) if ctx is not None else command.name or "this command")
         return body(*args, **kwargs)
 
     wrapped = copy.copy(command)

@@ -10,15 +10,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from urdf2mjcf.api import robot_tree  # emit's document, as the pipeline hands it over
 from urdf2mjcf.errors import InputError, URDFError
 from urdf2mjcf.ir import Model
 from urdf2mjcf.passes import collision, emit, inertia, meshes, parse, xacro
 from urdf2mjcf.passes.actuators import ActuatorConfig, run
-
-
-def robot_tree(model: Model, floating_base: bool):
-    """Emit's document, as the pipeline hands it to the actuators pass."""
-    return emit.run(model, emit.EmitConfig(floating_base=floating_base))
 
 THETA_TOL = ActuatorConfig().sag_tolerance
 

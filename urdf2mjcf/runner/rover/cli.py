@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 from ...cli_types import BoundedInt, FiniteFloat
+from ...command_runner import DefaultGroup
 from ...limits import SEED_MAX
 from ...ros2.options import Transport, ros2_options, transport
 from ..executors import Kind
@@ -466,28 +467,15 @@ def _subcommand(name: str) -> click.Command:
     )
 
 
-class _RoverCommands(click.Group):
-    """:data:`SUBCOMMANDS`. A first argument that names none is the spelling from before
-    sub-commands (``rover-drive SCENE [--plan F | --task deliver | --console] ...``),
-    which keeps working, with its option checks, for a release."""
-
-    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        if not args or (args[0] not in self.commands and args[0] not in ctx.help_option_names):
-            args = [_LEGACY, *args]
-        return super().parse_args(ctx, args)
-
-    def resolve_command(
-        self, ctx: click.Context, args: list[str]
-    ) -> tuple[str | None, click.Command | None, list[str]]:
-        name, command, rest = super().resolve_command(ctx, args)
-        return ("" if name == _LEGACY else name), command, rest  # its errors: `rover-drive`
-
-
 _LEGACY = "legacy"
+"""The hidden sub-command that is the spelling from before sub-commands
+(``rover-drive SCENE [--plan F | --task deliver | --console] ...``), which keeps
+working, with its option checks, for a release."""
 
-
-rover_drive_group = _RoverCommands(
+rover_drive_group = DefaultGroup(
     "rover-drive",
+    default=_LEGACY,
+    hidden_default=True,
     commands={name: _subcommand(name) for name in SUBCOMMANDS},
     help="""Drive the MIRA3D rovers of a built world: a straight drive and a turn, a task
     plan, the deliver task, or a browser console.
