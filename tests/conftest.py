@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 from pathlib import Path
 
 import pytest
 
+from tests import warm_cache
 from urdf2mjcf import headless
 
 headless.configure()  # before any test imports mujoco's renderer
@@ -17,10 +19,19 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="session", autouse=True)
 def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    # One cold cache per test run, shared by the xdist workers of that run.
+    # One cache per test run, shared by the xdist workers of that run, filled once from
+    # the pre-warmed decompositions (tests/warm_cache.py) unless the run asks for cold.
     base = tmp_path_factory.getbasetemp()
-    cache = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "urdf2mjcf-cache"
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    cache = shared / "urdf2mjcf-cache"
     cache.mkdir(parents=True, exist_ok=True)
+    with open(shared / "urdf2mjcf-cache.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # the first worker unpacks; the others wait for it
+        done = shared / "urdf2mjcf-cache.warmed"
+        if not done.exists():
+            if os.environ.get(warm_cache.COLD_ENV) != "1":
+                warm_cache.unpack(cache)
+            done.touch()
     os.environ["URDF2MJCF_CACHE"] = str(cache)
     return cache
 
@@ -46,6 +57,10 @@ def gl_context() -> None:
 @pytest.fixture
 def data_dir() -> Path:
     return DATA
+
+
+def pytest_report_header() -> str:
+    return warm_cache.header()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
