@@ -8,7 +8,7 @@ import struct
 
 import numpy as np
 
-from .fmt import fmt_float
+from .fmt import fmt_floats
 from .ir import MeshAsset, MeshData
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.-]+")
@@ -50,12 +50,15 @@ def stl_bytes(mesh: MeshData) -> bytes:
 def obj_bytes(mesh: MeshData) -> bytes:
     """Wavefront OBJ with texture coordinates when the mesh has them."""
     lines = ["# urdf2mjcf"]
-    lines += [f"v {fmt_float(x)} {fmt_float(y)} {fmt_float(z)}" for x, y, z in mesh.vertices]
+    v = iter(fmt_floats(np.asarray(mesh.vertices).reshape(-1, 3)))
+    lines += [f"v {x} {y} {z}" for x, y, z in zip(v, v, v, strict=True)]
+    faces = (np.asarray(mesh.faces, dtype=np.int64).reshape(-1, 3) + 1).tolist()
     if mesh.uv is not None:
-        lines += [f"vt {fmt_float(u)} {fmt_float(w)}" for u, w in mesh.uv]
-        lines += [f"f {a + 1}/{a + 1} {b + 1}/{b + 1} {c + 1}/{c + 1}" for a, b, c in mesh.faces]
+        t = iter(fmt_floats(np.asarray(mesh.uv).reshape(-1, 2)))
+        lines += [f"vt {u} {w}" for u, w in zip(t, t, strict=True)]
+        lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in faces]
     else:
-        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh.faces]
+        lines += [f"f {a} {b} {c}" for a, b, c in faces]
     return ("\n".join(lines) + "\n").encode()
 
 
