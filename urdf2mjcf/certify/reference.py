@@ -335,6 +335,15 @@ class UrdfdomReading:
     implementation: str
     """``urdfdom X.Y.Z``."""
 
+    _data_lock: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
+
+    @cached_property
+    def _data(self) -> Any:
+        """One ``pinocchio.Data``, reused by every :meth:`frames` (under ``_data_lock``):
+        making it is quadratic in the chain's length (6 s for 400 links), the forward
+        kinematics that fill it are not."""
+        return self.model.createData()
+
     @cached_property
     def _plan(self) -> tuple[list[tuple[str, int, int]], list[tuple[str, int]]]:
         """(joint, first q index, nq) of each joint with a configuration, and
@@ -370,14 +379,16 @@ class UrdfdomReading:
                 q[idx] = value
             elif nq == 2:  # a continuous joint: (cos, sin)
                 q[idx : idx + 2] = (math.cos(value), math.sin(value))
-        d = m.createData()
-        pin.framesForwardKinematics(m, d, q)
         out: dict[str, np.ndarray] = {}
-        for name, fid in links:
-            placement = d.oMf[fid]
-            t = np.eye(4)
-            t[:3, :3], t[:3, 3] = placement.rotation, placement.translation
-            out.setdefault(name, t)
+        with self._data_lock:
+            d = self._data
+            pin.framesForwardKinematics(m, d, q)
+            placements = d.oMf
+            for name, fid in links:
+                placement = placements[fid]
+                t = np.eye(4)
+                t[:3, :3], t[:3, 3] = placement.rotation, placement.translation
+                out.setdefault(name, t)
         root = out.get(self.root)
         if root is not None and not np.array_equal(root, np.eye(4)):
             inv = np.linalg.inv(root)
