@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
+from urdf2mjcf.runner import demo as demo_module
 from urdf2mjcf.runner.cli import facility_demo_command
 from urdf2mjcf.runner.demo import Demo, StepError, load_waypoints
 from urdf2mjcf.runner.hinge import hinge_axis
@@ -90,21 +91,34 @@ class _Recording(Demo):
 
 
 @pytest.fixture(scope="module")
-def recorded(facility):
-    fac = load(facility)
-    demo = _Recording(fac, load_waypoints(WAYPOINTS), log=lambda *_: None)
-    demo.reached = {}
-    try:
-        result = demo.run()
-    finally:
-        demo.close()
-    return demo, result
+def recorded(facility, tmp_path_factory):
+    """The suite's one full replay of the published demo: facility-demo on the default
+    facility, writing its report and frames, its Demo recording the waypoints reached.
+    (demo, the command's result, the folder of the report and frames)."""
+    out = tmp_path_factory.mktemp("published")
+    runs: list[_Recording] = []
+
+    class Recorded(_Recording):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.reached = {}
+            runs.append(self)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(demo_module, "Demo", Recorded)  # the command makes its Demo when it runs
+        res = CliRunner().invoke(
+            facility_demo_command,
+            [str(facility), "--report", str(out / "report.json"), "--frames", str(out / "frames")],
+        )
+    (demo,) = runs
+    return demo, res, out
 
 
 @pytest.mark.slow
 def test_the_published_demo_succeeds_and_reaches_the_published_waypoints(recorded):
-    demo, result = recorded
-    assert result.ok, (result.failed_step, result.message)
+    demo, res, out = recorded
+    result = json.loads((out / "report.json").read_text())
+    assert result["ok"], (result["failed_step"], result["message"])
     for name, arm in PUBLISHED_ARM.items():
         q, target = demo.reached[name]
         # approach_bench_seat is taught relative to the trainer: carried along with its
@@ -115,7 +129,7 @@ def test_the_published_demo_succeeds_and_reaches_the_published_waypoints(recorde
     # the trainer was found by its two lid tags through the noisy wrist camera: the
     # report's estimate-minus-truth, against the model's own pose of the trainer
     assert demo.estimates["trainer"].tags == (0, 1)
-    err = result.localization["trainer"]
+    err = result["localization"]["trainer"]
     assert err["position_error_m"] < 0.005 and abs(err["yaw_error_deg"]) < 0.5, err
     root = demo.fac.body("trainer_frame")
     assert np.linalg.norm(demo.estimates["trainer"].position - demo.d.xpos[root]) < 0.005
@@ -188,13 +202,9 @@ def test_the_runner_follows_the_tags_not_the_model(facility):
 
 
 @pytest.mark.slow
-def test_the_demo_succeeds_on_the_default_facility(facility, tmp_path):
-    report = tmp_path / "report.json"
-    frames = tmp_path / "frames"
-    res = CliRunner().invoke(
-        facility_demo_command,
-        [str(facility), "--report", str(report), "--frames", str(frames)],
-    )
+def test_the_demo_succeeds_on_the_default_facility(recorded):
+    _, res, out = recorded
+    report, frames = out / "report.json", out / "frames"
     assert res.exit_code == 0, res.output
     assert "SUCCESS" in res.output and "open_lid" in res.output
     data = json.loads(report.read_text())
@@ -235,13 +245,25 @@ def test_ctb_out_of_the_wrist_cameras_view_fails_at_find_handle(facility):
     assert "not in the wrist camera's view" in res.message
 
 
-@pytest.mark.slow
-def test_a_bin_too_small_fails_the_success_check(facility):
+def test_a_bin_too_small_fails_the_success_check(recorded, facility):
+    """The published run's final state judged against a bin shorter than the 0.50 m bag;
+    and a demo whose steps leave the bag outside the bin fails at the success check."""
+    demo = recorded[0]
+    stowage = demo.spec["stowage"]
+    inside = stowage["inside"]
+    assert demo.success_check().ok
+    stowage["inside"] = [0.6462, 0.45, 0.3475]
+    try:
+        verdict = demo.success_check()
+    finally:
+        stowage["inside"] = inside
+    assert not verdict.ok
+    assert "outside the stowage volume of 'trainer_seat_bin'" in verdict.message
+
     spec = load_waypoints(WAYPOINTS)
-    spec["stowage"]["inside"] = [0.6462, 0.45, 0.3475]  # shorter than the 0.50 m bag
+    spec["steps"] = []  # the bag stays where it starts, outside the bin
     res = _run(facility, spec=spec)
-    assert all(s.ok for s in res.steps)
-    assert not res.ok and res.failed_step == "success check"
+    assert not res.ok and res.failed_step == "success check" and res.steps == []
     assert "outside the stowage volume of 'trainer_seat_bin'" in res.message
 
 

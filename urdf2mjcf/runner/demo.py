@@ -32,7 +32,7 @@ from ..bundle_manifest import Pose
 from ..errors import PlanningError
 from . import ik, localize, perception, plan
 from .control import Controller
-from .judge import ContactJudge, stowed
+from .judge import ContactJudge, Verdict, stowed
 from .load import DEMO_ROBOT, Facility, Robot
 from .noise import SensorNoise
 from .sim import Sim
@@ -314,8 +314,10 @@ class Demo:
             names = [self.m.body(b).name for b in range(self.m.nbody)]
             allowed = [  # the carriage runs 4.5 mm beside the base's cable tray, by design
                 (names.index(a), names.index(b))
-                for a, b in (("rail_base_link", "rail_carriage_link"),
-                             ("rail_base_link", "carriage_link"))
+                for a, b in (
+                    ("rail_base_link", "rail_carriage_link"),
+                    ("rail_base_link", "carriage_link"),
+                )
                 if a in names and b in names
             ]
             self._planner = plan.JointPlanner(
@@ -397,6 +399,7 @@ class Demo:
             p_rel = rs.T @ (self.d.site_xpos[g] - self.d.site_xpos[s])
             pos, R = pos + R @ p_rel, R @ (rs.T @ rg)
         return pos, R
+
     # ------------------------------------------------------------ run
     def run(self) -> DemoResult:
         t0 = time.perf_counter()
@@ -440,10 +443,7 @@ class Demo:
         verdict = None
         if failed is None:
             self.ctl.wait(self.spec.get("final_wait", 1.5))
-            st = self.spec["stowage"]
-            v = stowed(
-                self.fac, self.bag["body"], self.bag["geom"], st["body"], tuple(st["inside"])
-            )
+            v = self.success_check()
             verdict = asdict(v)
             message = v.message
             if not v.ok:
@@ -460,6 +460,12 @@ class Demo:
             self.handle_info,
             self.localization() if self.estimates else None,
         )
+
+    def success_check(self) -> Verdict:
+        """The demo's verdict on the state it is in: the bag inside the stowage volume,
+        upright and still."""
+        st = self.spec["stowage"]
+        return stowed(self.fac, self.bag["body"], self.bag["geom"], st["body"], tuple(st["inside"]))
 
     def _check(self, check: dict) -> str:
         if "joint_above_deg" in check:
