@@ -63,6 +63,17 @@ def pytest_report_header() -> str:
     return warm_cache.header()
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    # Tests that share a module-scoped fixture run on one xdist worker (--dist loadgroup,
+    # pyproject.toml), so what it builds (a facility, a demo run, a served robot) is built
+    # once, not once per worker; every other test is scheduled on its own.
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        defs = info.name2fixturedefs.values() if info is not None else ()
+        if any(d[-1].scope == "module" for d in defs if d):
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption(
         "--update-golden",
