@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -37,13 +38,19 @@ def _session_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="session")
-def imetro_bundle(_session_cache: Path) -> Path:
-    """The default iMETRO facility (recipes/imetro.yaml, no components/), built once per
-    test run in the session cache and shared by every worker. Read-only: the runtime
-    never writes into a bundle; a test that edits one builds its own."""
+def shipped_bundle(_session_cache: Path) -> Callable[[str], Path]:
+    """NAME -> the bundle of recipes/NAME.yaml (no components/), built once per test run
+    in the session cache and shared by every worker. Read-only: the runtime never writes
+    into a bundle; a test that edits one copies it or builds its own."""
     from urdf2mjcf.envs import build as env_build
 
-    return env_build.facility_folder("imetro", root=ROOT)[0]
+    return lambda name: env_build.facility_folder(name, root=ROOT)[0]
+
+
+@pytest.fixture(scope="session")
+def imetro_bundle(shipped_bundle: Callable[[str], Path]) -> Path:
+    """The default iMETRO facility, as :func:`shipped_bundle` builds it."""
+    return shipped_bundle("imetro")
 
 
 @pytest.fixture(scope="session")

@@ -21,8 +21,6 @@ import numpy as np
 import pytest
 
 from tests.test_view import TIMEOUT, Lines, at, served_model
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.view.live import LiveView
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,11 +94,8 @@ def test_the_live_view_serves_the_runs_state_and_leaves_the_run_alone(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def mira(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("mira") / "mira3d-floor"
-    recipe = load_recipe(ROOT / "recipes" / "mira3d-floor.yaml")
-    build_facility(recipe, out, root=ROOT, components=False)
-    return out
+def mira(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 DRIVE = ["--distance", "0.6", "--settle", "0.5"]
@@ -146,11 +141,8 @@ def _without_timing(value: Any) -> Any:
     return value
 
 
-def test_facility_demo_view_changes_nothing_but_the_time_it_takes(tmp_path):
-    built = tmp_path / "imetro"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "imetro.yaml"), built, root=ROOT, components=False
-    )
+def test_facility_demo_view_changes_nothing_but_the_time_it_takes(imetro_bundle, tmp_path):
+    built = imetro_bundle
     command = [*_command("facility_demo_main"), str(built), "--report"]
     plain = subprocess.run([*command, str(tmp_path / "a.json")], capture_output=True)
     assert plain.returncode == 0, plain.stderr

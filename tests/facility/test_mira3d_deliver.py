@@ -19,8 +19,6 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.rover import rover_drive_command
 from urdf2mjcf.runner.rover.deliver import run_deliver
 from urdf2mjcf.runner.rover.printhead import AHEAD, SIDE
@@ -38,17 +36,11 @@ TASK_KEYS = {
 }
 
 
-def _build(tmp_path_factory, recipe: str) -> Path:
-    out = tmp_path_factory.mktemp("deliver") / recipe
-    rec = load_recipe(ROOT / "recipes" / f"{recipe}.yaml")
-    return build_facility(rec, out, root=ROOT, components=False).output
-
-
 @pytest.fixture(scope="module")
-def moon_run(tmp_path_factory):
+def moon_run(shipped_bundle):
     """The deliver task once on the Moon pair bundle: (sim after the run, result, model
     masses of the grains, the collector's mass)."""
-    sim = RoverSim(_build(tmp_path_factory, "mira3d-pair"))
+    sim = RoverSim(shipped_bundle("mira3d-pair"))
     m = sim.m
     grains = [
         m.body(f"regolith_{k}").id
@@ -138,8 +130,8 @@ def test_the_printed_layer_follows_the_planned_square(moon_run):
     assert res.planned_path_m == pytest.approx(4 * SIDE, rel=1e-9)
 
 
-def test_deliver_on_the_floor_writes_its_report(tmp_path_factory, tmp_path):
-    bundle = _build(tmp_path_factory, "mira3d-pair-floor")
+def test_deliver_on_the_floor_writes_its_report(shipped_bundle, tmp_path):
+    bundle = shipped_bundle("mira3d-pair-floor")
     report = tmp_path / "deliver.json"
     res = CliRunner().invoke(
         rover_drive_command, [str(bundle), "--task", "deliver", "--report", str(report)]
@@ -155,8 +147,8 @@ def test_deliver_on_the_floor_writes_its_report(tmp_path_factory, tmp_path):
     assert "deliver: success" in res.output
 
 
-def test_deliver_needs_the_pair(tmp_path_factory):
-    bundle = _build(tmp_path_factory, "mira3d-floor")
+def test_deliver_needs_the_pair(shipped_bundle):
+    bundle = shipped_bundle("mira3d-floor")
     exe = Path(sys.executable).parent / "rover-drive"
     res = subprocess.run(
         [str(exe), str(bundle), "--task", "deliver"], capture_output=True, text=True

@@ -15,8 +15,6 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.rover import RoverSim, Straight, Turn, rover_drive_command
 from urdf2mjcf.runner.rover.drift import plotted_by
 
@@ -35,10 +33,8 @@ DRIFT_KEYS = {
 
 
 @pytest.fixture(scope="module")
-def floor(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("drift") / "mira3d-floor"
-    recipe = load_recipe(ROOT / "recipes" / "mira3d-floor.yaml")
-    return build_facility(recipe, out, root=ROOT, components=False).output
+def floor(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 def _yaw(quat: np.ndarray) -> float:

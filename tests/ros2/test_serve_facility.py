@@ -13,19 +13,13 @@ import pytest
 zenoh = pytest.importorskip("zenoh")
 
 from tests.ros2.test_serve_e2e import Served, _free_port, _last, _session, _tokens  # noqa: E402
-from urdf2mjcf.facility.build import build_facility  # noqa: E402
-from urdf2mjcf.facility.recipe import load_recipe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def imetro(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("ros2") / "imetro-compact"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "imetro-compact.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def imetro(shipped_bundle) -> Path:
+    return shipped_bundle("imetro-compact")
 
 
 def test_the_robot_and_the_mockups_joints_are_served(imetro):

@@ -23,19 +23,13 @@ from tests.ros2.test_serve_e2e import (  # noqa: E402
     _session,
     _tokens,
 )
-from urdf2mjcf.facility.build import build_facility  # noqa: E402
-from urdf2mjcf.facility.recipe import load_recipe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def rover_world(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("ros2") / "mira3d-floor"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-floor.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def rover_world(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,6 @@ import pytest
 from click.testing import CliRunner
 from scipy.spatial.transform import Rotation
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner import demo as demo_module
 from urdf2mjcf.runner.cli import facility_demo_command
 from urdf2mjcf.runner.demo import Demo, StepError, load_waypoints
@@ -224,11 +222,8 @@ def test_the_demo_succeeds_on_the_default_facility(recorded):
 
 
 @pytest.mark.slow
-def test_the_compact_layouts_demo_succeeds(tmp_path):
-    out = tmp_path / "imetro-compact"
-    recipe = load_recipe(ROOT / "recipes" / "imetro-compact.yaml")
-    build_facility(recipe, out, root=ROOT, components=False)
-    res = _run(out, spec=load_waypoints(ROOT / "recipes" / "demo" / "imetro-compact.yaml"))
+def test_the_compact_layouts_demo_succeeds(shipped_bundle):
+    res = _run(shipped_bundle("imetro-compact"), spec=load_waypoints(ROOT / "recipes" / "demo" / "imetro-compact.yaml"))
     assert res.ok, (res.failed_step, res.message)
 
 

@@ -21,8 +21,6 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
 from urdf2mjcf.command_runner import run_command
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.cdr import encoder
 from urdf2mjcf.runner.foxglove_live import FoxgloveStream
 from urdf2mjcf.runner.load import load
@@ -42,12 +40,8 @@ TIMEOUT = 120.0
 
 
 @pytest.fixture(scope="module")
-def mira(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("mira3d") / "mira3d"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-floor.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def mira(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 def command(main: str, *args: str) -> list[str]:

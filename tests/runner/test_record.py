@@ -19,8 +19,6 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from scipy.spatial.transform import Rotation
 
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.cli import facility_demo_command
 from urdf2mjcf.runner.control import Controller
 from urdf2mjcf.runner.load import load
@@ -39,12 +37,8 @@ def imetro(imetro_bundle: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def mira(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("record") / "mira"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-floor.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def mira(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 def ns(t: float) -> int:

@@ -31,8 +31,6 @@ from PIL import Image
 from tests import browser
 from tests.test_view import Lines
 from urdf2mjcf.command_runner import run_command
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.rover import RoverSim, rover_drive_command
 from urdf2mjcf.runner.rover.console import BODY_MAX, Console
 from urdf2mjcf.runner.rover.console_sim import ConsoleSim
@@ -46,13 +44,9 @@ PAN = "ur_shoulder_pan_joint"
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def pair(shipped_bundle) -> Path:
     """The pair recipe (collector and printer on the Moon), built once."""
-    out = tmp_path_factory.mktemp("console") / "mira3d-pair"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-pair.yaml"), out, root=ROOT, components=False
-    )
-    return out
+    return shipped_bundle("mira3d-pair")
 
 
 @pytest.fixture

@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 import urdf2mjcf.envs  # noqa: F401  (registers the ids)
-from urdf2mjcf.envs import build as env_build
 from urdf2mjcf.facility.build import build_facility
 from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner.demo import Demo, load_waypoints
@@ -118,8 +117,8 @@ def test_a_demo_trial_decides_the_same_with_every_core_busy(seeded_facilities, s
 
 
 @pytest.fixture(scope="module")
-def floor(_session_cache: Path) -> Path:
-    return env_build.facility_folder("mira3d-floor", root=ROOT)[0]
+def floor(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 def test_a_rover_plan_ends_in_the_same_state_with_every_core_busy(floor, tmp_path):
@@ -145,10 +144,8 @@ def test_a_rover_plan_ends_in_the_same_state_with_every_core_busy(floor, tmp_pat
     assert busy == quiet
 
 
-def test_the_deliver_task_decides_the_same_with_every_core_busy(tmp_path_factory):
-    recipe = load_recipe(ROOT / "recipes" / "mira3d-pair-floor.yaml")
-    folder = tmp_path_factory.mktemp("deliver") / "pair"
-    bundle = build_facility(recipe, folder, root=ROOT, components=False).output
+def test_the_deliver_task_decides_the_same_with_every_core_busy(shipped_bundle):
+    bundle = shipped_bundle("mira3d-pair-floor")
 
     def run() -> tuple[dict, bytes]:
         sim = RoverSim(bundle)

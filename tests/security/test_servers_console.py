@@ -20,8 +20,6 @@ from pathlib import Path
 import pytest
 
 from tests.security.hostile import EVIL, Served, chromium, hostile_page, run
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 
 ROOT = Path(__file__).resolve().parents[2]
 STOP = "fetch('/estop',{method:'POST'})"
@@ -39,12 +37,8 @@ CAMERA = f'<img src=y onerror="{STOP}">'
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("servers") / "mira3d-pair"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-pair.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def pair(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-pair")
 
 
 def _renamed(value: object, names: dict[str, str]) -> object:

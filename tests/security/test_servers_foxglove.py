@@ -16,8 +16,6 @@ from pathlib import Path
 import pytest
 
 from tests.security.hostile import EVIL, Served, Site, chromium, hostile_page, run
-from urdf2mjcf.facility.build import build_facility
-from urdf2mjcf.facility.recipe import load_recipe
 from urdf2mjcf.runner import foxglove_server
 from urdf2mjcf.runner.foxglove_server import CLIENTS_MAX, QUEUE_BYTES, FoxgloveServer
 
@@ -29,12 +27,8 @@ TIMEOUT = 120.0
 
 
 @pytest.fixture(scope="module")
-def mira(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("fox") / "mira3d"
-    build_facility(
-        load_recipe(ROOT / "recipes" / "mira3d-floor.yaml"), out, root=ROOT, components=False
-    )
-    return out
+def mira(shipped_bundle) -> Path:
+    return shipped_bundle("mira3d-floor")
 
 
 ATTACK = """
