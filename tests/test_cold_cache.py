@@ -47,3 +47,16 @@ def test_a_robot_decomposed_from_an_empty_cache_is_written_as_from_a_warm_one(
     if not warm_cache.hits():
         pytest.skip(warm_cache.header())
     assert warm["decomposed_now"] == 0, "the pre-warmed cache holds this robot's decompositions"
+
+
+def test_every_entry_of_the_archive_is_one_the_cache_reads(tmp_path):
+    """The archive unpacks into entries the collision pass's cache takes (a damaged one
+    would only be a miss: the suite silently slow)."""
+    from urdf2mjcf.passes.collision.decompositions import DecompositionCache
+
+    n = warm_cache.unpack(tmp_path)
+    coacd = sorted((tmp_path / "coacd").glob("*.npz"))
+    assert n > len(coacd) >= 100
+    cache = DecompositionCache(tmp_path)
+    assert all(cache.load(p.stem) for p in coacd), "an entry the cache cannot read"
+    assert all(cache.load_gap(p.stem) is not None for p in (tmp_path / "hull_gap").glob("*"))
