@@ -18,7 +18,6 @@ from PIL import Image
 from urdf2mjcf.runner.rover import RoverSim, Straight, Turn, rover_drive_command
 from urdf2mjcf.runner.rover.drift import plotted_by
 
-ROOT = Path(__file__).resolve().parents[2]
 DRIFT_KEYS = {
     "path_m",
     "turned_deg",

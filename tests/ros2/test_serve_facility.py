@@ -14,8 +14,6 @@ zenoh = pytest.importorskip("zenoh")
 
 from tests.ros2.test_serve_e2e import Served, _free_port, _last, _session, _tokens  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
 def imetro(shipped_bundle) -> Path:

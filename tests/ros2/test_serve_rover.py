@@ -24,8 +24,6 @@ from tests.ros2.test_serve_e2e import (  # noqa: E402
     _tokens,
 )
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture(scope="module")
 def rover_world(shipped_bundle) -> Path:

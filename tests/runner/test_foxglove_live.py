@@ -31,7 +31,6 @@ from urdf2mjcf.runner.rover.tasks import Straight
 
 websockets = pytest.importorskip("websockets")
 
-ROOT = Path(__file__).resolve().parents[2]
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
 SUBPROTOCOL = "foxglove.sdk.v1"
 """What the Foxglove app offers first (our server speaks the older foxglove.websocket.v1 too)."""

@@ -27,7 +27,6 @@ from urdf2mjcf.runner.rover.cli import rover_drive_command
 from urdf2mjcf.runner.rover.sim import RoverSim
 from urdf2mjcf.runner.rover.tasks import Straight
 
-ROOT = Path(__file__).resolve().parents[2]
 HUMBLE = get_typestore(Stores.ROS2_HUMBLE)
 
 

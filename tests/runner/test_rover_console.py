@@ -35,7 +35,6 @@ from urdf2mjcf.runner.rover import RoverSim, rover_drive_command
 from urdf2mjcf.runner.rover.console import BODY_MAX, Console
 from urdf2mjcf.runner.rover.console_sim import ConsoleSim
 
-ROOT = Path(__file__).resolve().parents[2]
 PACE = 4.0
 """Simulated seconds per wall-clock second in the tests: fast, yet light on the CPU."""
 TIMEOUT = 120.0

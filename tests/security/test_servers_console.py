@@ -21,7 +21,6 @@ import pytest
 
 from tests.security.hostile import EVIL, Served, chromium, hostile_page, run
 
-ROOT = Path(__file__).resolve().parents[2]
 STOP = "fetch('/estop',{method:'POST'})"
 PAYLOADS = {
     "ur_shoulder_pan_joint": f'<img src=x onerror="{STOP}">',

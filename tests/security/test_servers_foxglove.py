@@ -21,7 +21,6 @@ from urdf2mjcf.runner.foxglove_server import CLIENTS_MAX, QUEUE_BYTES, FoxgloveS
 
 websockets = pytest.importorskip("websockets")
 
-ROOT = Path(__file__).resolve().parents[2]
 SUBPROTOCOL = "foxglove.sdk.v1"
 TIMEOUT = 120.0
 
