@@ -3,19 +3,18 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from . import output as out
-from .cache import default_cache_dir
 from .certify import Certificate, CertificateFailed, CertifyConfig
-from .certify.tolerances import Tolerances
 from .errors import ConversionError, OutputError
 from .ir import Model, UrdfDocument
 from .mjcf import compile as mjcf_compile
 from .mjcf.document import Document, mjcf_bytes
+from .options import ConvertOptions, make_options
 from .passes import (
     actuators,
     collision,
@@ -33,145 +32,6 @@ from .passes import (
 from .report import Report
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class ConvertOptions:
-    """Every option of a conversion, one config per pass, defaults in one place."""
-
-    xacro: xacro.XacroConfig = field(default_factory=xacro.XacroConfig)
-    parse: parse.ParseConfig = field(default_factory=parse.ParseConfig)
-    meshes: meshes.MeshConfig = field(default_factory=meshes.MeshConfig)
-    collision: collision.CollisionConfig = field(default_factory=collision.CollisionConfig)
-    inertia: inertia.InertiaConfig = field(default_factory=inertia.InertiaConfig)
-    actuators: actuators.ActuatorConfig = field(default_factory=actuators.ActuatorConfig)
-    sensors: sensors.SensorConfig = field(default_factory=sensors.SensorConfig)
-    emit: emit.EmitConfig = field(default_factory=emit.EmitConfig)
-    extension: extension.ExtensionConfig = field(default_factory=extension.ExtensionConfig)
-    contacts: contacts.ContactsConfig = field(default_factory=contacts.ContactsConfig)
-    validate: validate.ValidateConfig = field(default_factory=validate.ValidateConfig)
-    certify: CertifyConfig = field(default_factory=CertifyConfig)
-    """The fidelity certificate of the written model (see :mod:`urdf2mjcf.certify`)."""
-    calibration: Path | None = None
-    """A calibration file (:mod:`urdf2mjcf.calibrate.apply`) written into the document
-    after the actuators and contacts."""
-    scene: bool = True
-    """Also write ``scene.xml`` (floor, light, sky) beside the robot."""
-    overwrite: bool = False
-
-
-def make_options(
-    *,
-    args: Mapping[str, str] | None = None,
-    package_paths: Sequence[str | Path] = (),
-    packages: Mapping[str, str | Path] | None = None,
-    use_environment: bool = True,
-    density: float = inertia.InertiaConfig.density,
-    link_density: Mapping[str, float] | None = None,
-    collision_source: str = "collision",
-    collision_shape: str = "decompose",
-    link_collision: Mapping[str, str] | None = None,
-    primitive_tolerance: float = collision.primitives.TOLERANCE_MM,
-    primitive_volume_ratio: float = collision.primitives.MAX_VOLUME_RATIO,
-    keep_contacts: bool = False,
-    cache_dir: str | Path | None = None,
-    use_cache: bool = True,
-    workers: int = 0,
-    decompose_timeout: float = collision.CollisionConfig.timeout,
-    progress: Callable[[int, int, str], None] | None = None,
-    strict: bool = False,
-    max_faces: int = meshes.MeshConfig.max_faces,
-    actuator_config: str | Path | None = None,
-    gravcomp: bool = False,
-    joint_sensors: bool = True,
-    mujoco_extension: bool = True,
-    fuse_fixed: bool = False,
-    floating_base: bool = False,
-    model_name: str | None = None,
-    calibration: str | Path | None = None,
-    scene: bool = True,
-    validate_model: bool = True,
-    overwrite: bool = False,
-    trust_xacro: bool | None = None,
-    certify: bool = True,
-    verify: bool = False,
-    tolerances: Tolerances | None = None,
-) -> ConvertOptions:
-    """Keyword options (as :func:`convert` takes them) -> :class:`ConvertOptions`.
-
-    ``trust_xacro`` runs a description's code as ROS's xacro does; ``None`` takes it
-    from ``$URDF2MJCF_TRUST_XACRO`` (default: expressions are checked). ``certify``:
-    compute the certificate (with validation); ``verify``: compute it even without
-    validation and fail the conversion (:class:`~urdf2mjcf.certify.CertificateFailed`,
-    nothing written) when it fails, against ``tolerances``. ``collision_shape``: what
-    collision meshes become (``decompose``, ``hull``, ``primitive`` or ``auto``), for
-    every link; ``link_collision``: link name -> shape, above every other route;
-    ``primitive_tolerance`` (mm) and ``primitive_volume_ratio``: what ``auto`` accepts
-    of a primitive fit (see :mod:`urdf2mjcf.passes.collision`). ``keep_contacts``: write
-    no contact exclusion (see :mod:`urdf2mjcf.passes.contacts`)."""
-    from .passes.xacro_guard import trust_from_env
-
-    return ConvertOptions(
-        xacro=xacro.XacroConfig(
-            args=dict(args or {}),
-            packages={k: Path(v) for k, v in (packages or {}).items()},
-            package_paths=tuple(Path(p) for p in package_paths),
-            use_environment=use_environment,
-            strict=strict,
-            trust=trust_from_env() if trust_xacro is None else trust_xacro,
-        ),
-        parse=parse.ParseConfig(strict=strict, free_root=floating_base),
-        meshes=meshes.MeshConfig(
-            max_faces=max_faces,
-            strict_visual=strict,
-            cache_dir=Path(cache_dir) if cache_dir else None,
-            use_cache=use_cache,
-        ),
-        collision=collision.CollisionConfig(
-            source=collision_source,  # type: ignore[arg-type]
-            cache_dir=Path(cache_dir) if cache_dir else None,
-            use_cache=use_cache,
-            workers=workers,
-            timeout=decompose_timeout,
-            progress=progress,
-            shape=collision_shape,  # type: ignore[arg-type]  # checked by the pass
-            link_shapes=dict(link_collision or {}),
-            primitive_tolerance_mm=primitive_tolerance,
-            primitive_volume_ratio=primitive_volume_ratio,
-            config_file=Path(actuator_config) if actuator_config else None,
-            mujoco_extension=mujoco_extension,
-        ),
-        inertia=inertia.InertiaConfig(
-            density=density, link_density=dict(link_density or {}), free_root=floating_base
-        ),
-        actuators=actuators.ActuatorConfig(
-            config_file=Path(actuator_config) if actuator_config else None,
-            gravcomp=gravcomp,
-            floating_base=floating_base,
-        ),
-        sensors=sensors.SensorConfig(joint_sensors=joint_sensors),
-        emit=emit.EmitConfig(
-            fuse_fixed=fuse_fixed, floating_base=floating_base, model_name=model_name
-        ),
-        extension=extension.ExtensionConfig(enabled=mujoco_extension, check=validate_model),
-        contacts=contacts.ContactsConfig(
-            keep=keep_contacts,
-            config_file=Path(actuator_config) if actuator_config else None,
-            mujoco_extension=mujoco_extension,
-        ),
-        validate=validate.ValidateConfig(enabled=validate_model),
-        certify=CertifyConfig(
-            enabled=certify,
-            enforce=verify,
-            tolerances=tolerances or Tolerances(),
-            cache_root=(Path(cache_dir) if cache_dir else default_cache_dir())
-            if use_cache
-            else None,
-        ),
-        calibration=Path(calibration) if calibration else None,
-        scene=scene,
-        overwrite=overwrite,
-    )
 
 
 ModelPass = Callable[[Document], Document]

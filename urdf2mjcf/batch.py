@@ -37,7 +37,7 @@ from typing import Any
 import click
 
 from . import output as out
-from .cli_common import QUIET, pairs, shared_params
+from .cli_common import QUIET, converter_keywords, converter_params
 from .cli_types import BoundedInt
 from .errors import ConversionError, InputError
 from .runner.executors import EXECUTORS, Kind, import_ray, run_jobs
@@ -184,7 +184,7 @@ def resolve_options(options: dict[str, Any]) -> dict[str, Any]:
             resolved[key] = str(Path(resolved[key]).resolve())
     resolved["package_paths"] = [str(Path(p).resolve()) for p in options.get("package_paths", ())]
     resolved["packages"] = {
-        k: str(Path(v).resolve()) for k, v in options.get("packages", {}).items()
+        k: str(Path(v).resolve()) for k, v in dict(options.get("packages") or {}).items()
     }
     resolved.setdefault("workers", 1)
     resolved["overwrite"] = False  # each job writes into an empty folder of its own
@@ -247,35 +247,6 @@ def run_batch(
 # -- the command -------------------------------------------------------------------------
 
 
-def conversion_options(kw: dict[str, Any]) -> dict[str, Any]:
-    """The converter's click values -> keyword options of ``api.make_options``."""
-    return {
-        "package_paths": list(kw["package_path"]),
-        "packages": pairs(kw["packages"], "=", "NAME=DIR"),
-        "use_environment": not kw["no_ros_env"],
-        "density": kw["density"],
-        "collision_source": kw["collision_source"],
-        "collision_shape": kw["collision_shape"],
-        "primitive_tolerance": kw["primitive_tolerance"],
-        "primitive_volume_ratio": kw["primitive_volume_ratio"],
-        "keep_contacts": kw["keep_contacts"],
-        "actuator_config": kw["actuator_config"],
-        "gravcomp": kw["gravcomp"],
-        "joint_sensors": not kw["no_joint_sensors"],
-        "mujoco_extension": not kw["no_mujoco_extension"],
-        "fuse_fixed": kw["fuse_fixed"],
-        "floating_base": kw["floating_base"],
-        "scene": not kw["no_scene"],
-        "strict": kw["strict"],
-        "trust_xacro": True if kw["trust_xacro"] else None,  # None: $URDF2MJCF_TRUST_XACRO
-        "validate_model": not kw["no_validate"],
-        "cache_dir": kw["cache_dir"],
-        "use_cache": not kw["no_cache"],
-        "decompose_timeout": kw["decompose_timeout"],
-        "max_faces": kw["max_faces"],
-    }
-
-
 def _progress(finished: int, total: int, entry: dict[str, Any]) -> None:
     if entry["ok"]:
         click.echo(
@@ -311,7 +282,7 @@ def _batch(
     summary = run_batch(
         paths,
         output,
-        conversion_options(converter),
+        converter_keywords(converter),
         executor=executor,
         workers=workers,
         address=address,
@@ -369,7 +340,7 @@ def _make_command() -> click.Command:
             "(its other files are kept).",
         ),
         click.Option(list(QUIET[0]), **QUIET[1]),
-        *shared_params(),  # the converter's options that apply to every robot
+        *converter_params(),  # the converter's options that apply to every robot
     ]
     return click.Command(
         "batch",

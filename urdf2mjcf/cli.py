@@ -12,18 +12,18 @@ import click
 
 from . import extras, headless
 from .cli_common import (
-    DENSITY,
-    KeyedChoice,
     configure_logging,
+    converter_keywords,
+    converter_option,
+    converter_options,
+    converter_params,
     pairs,
     quiet_option,
-    shared_option,
-    shared_params,
 )
-from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
+from .cli_types import BoundedInt
 from .command_runner import DefaultGroup, run_command
 from .errors import ConversionError
-from .ir import COLLISION_SHAPES, Note
+from .ir import Note
 from .runner.live_options import allow_origin_option, allow_origin_param, check_allow_origin
 from .untrusted import printable
 
@@ -79,73 +79,7 @@ def _echo_notes(notes: Iterable[Note], verbose: int) -> None:
     type=click.Path(path_type=Path, dir_okay=False),
     help="MJCF file to write; meshes go to assets/ beside it.",
 )
-@shared_option("package_path")
-@shared_option("packages")
-@shared_option("no_ros_env")
-@shared_option("density")
-@click.option(
-    "--link-density",
-    multiple=True,
-    type=KeyedFloat(DENSITY, "LINK"),
-    metavar="LINK=KG_PER_M3",
-    help="Per-link density override (repeatable).",
-)
-@shared_option("collision_source")
-@shared_option("collision_shape")
-@click.option(
-    "--link-collision",
-    multiple=True,
-    type=KeyedChoice(COLLISION_SHAPES, "LINK"),
-    metavar="LINK=SHAPE",
-    help="One link's collision shape (repeatable); above the URDF's <mujoco> and the "
-    "--actuator-config file's collision section.",
-)
-@shared_option("primitive_tolerance")
-@shared_option("primitive_volume_ratio")
-@shared_option("keep_contacts")
-@shared_option("actuator_config")
-@shared_option("gravcomp")
-@shared_option("no_joint_sensors")
-@shared_option("no_mujoco_extension")
-@shared_option("fuse_fixed")
-@shared_option("floating_base")
-@click.option("--model-name", help="Name of the MuJoCo model (default: the URDF robot name).")
-@click.option(
-    "--calibration",
-    type=click.Path(path_type=Path, dir_okay=False),
-    help="calibration.yaml from 'urdf2mjcf calibrate': its identified joint damping, "
-    "friction, armature, gains and masses written into the model.",
-)
-@shared_option("no_scene")
-@click.option("--overwrite", is_flag=True, help="Replace existing output files.")
-@shared_option("strict")
-@shared_option("trust_xacro")
-@shared_option("no_validate")
-@click.option(
-    "--verify",
-    is_flag=True,
-    help="Fail (exit 1, nothing written) when the certificate of the written model against "
-    "the description fails (see 'urdf2mjcf verify --help').",
-)
-@click.option(
-    "--tolerance",
-    "tolerances",
-    multiple=True,
-    type=KeyedFloat(FiniteFloat(0.0, 1e6), "NAME"),
-    metavar="NAME=VALUE",
-    help="Change one of the certificate's tolerances (repeatable; the names: docs/cli.md).",
-)
-@shared_option("cache_dir")
-@shared_option("no_cache")
-@click.option(
-    "-j",
-    "--jobs",
-    type=BoundedInt(0, 1024),
-    default=0,
-    help="Parallel decompositions (0 = one per CPU; at most 1024).",
-)
-@shared_option("decompose_timeout")
-@shared_option("max_faces")
+@converter_options()  # every option of the converter that has a flag, in order
 @click.option(
     "--report",
     "report_path",
@@ -158,40 +92,10 @@ def urdf2mjcf_command(
     source: Path,
     xacro_args: tuple[str, ...],
     output: Path,
-    package_path: tuple[Path, ...],
-    packages: tuple[str, ...],
-    no_ros_env: bool,
-    density: float,
-    link_density: tuple[tuple[str, float], ...],
-    collision_source: str,
-    collision_shape: str,
-    link_collision: tuple[tuple[str, str], ...],
-    primitive_tolerance: float,
-    primitive_volume_ratio: float,
-    keep_contacts: bool,
-    actuator_config: Path | None,
-    gravcomp: bool,
-    no_joint_sensors: bool,
-    no_mujoco_extension: bool,
-    fuse_fixed: bool,
-    floating_base: bool,
-    model_name: str | None,
-    calibration: Path | None,
-    no_scene: bool,
-    overwrite: bool,
-    strict: bool,
-    trust_xacro: bool,
-    no_validate: bool,
-    verify: bool,
-    tolerances: tuple[tuple[str, float], ...],
-    cache_dir: Path | None,
-    no_cache: bool,
-    jobs: int,
-    decompose_timeout: float,
-    max_faces: int,
     report_path: Path | None,
     verbose: int,
     quiet: bool,
+    **converter: Any,
 ) -> None:
     """Convert a URDF or xacro robot description SOURCE into MuJoCo MJCF.
 
@@ -204,14 +108,13 @@ def urdf2mjcf_command(
     from . import api  # keep `--help` fast
     from . import output as out
     from .certify import CertificateFailed
-    from .certify.tolerances import Tolerances
 
+    overwrite = converter["overwrite"]
     configure_logging(verbose, quiet)
     if report_path:
         if report_path.resolve() == Path(output).resolve():
             raise click.BadParameter("is the MJCF output file", param_hint="--report")
         out.check_file(report_path, overwrite, "urdf2mjcf")  # before the work, not after
-    densities = dict(link_density)  # (LINK, checked number) pairs: see KeyedFloat
     # All or nothing: the report's file is made before the work (a folder we cannot write
     # in fails here), the MJCF files are installed only once the report is written, and
     # undone if its rename fails.
@@ -223,38 +126,8 @@ def urdf2mjcf_command(
     ):
         options = api.make_options(
             args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
-            package_paths=package_path,
-            packages=pairs(packages, "=", "NAME=DIR"),
-            use_environment=not no_ros_env,
-            density=density,
-            link_density=densities,
-            collision_source=collision_source,
-            collision_shape=collision_shape,
-            link_collision=dict(link_collision),
-            primitive_tolerance=primitive_tolerance,
-            primitive_volume_ratio=primitive_volume_ratio,
-            keep_contacts=keep_contacts,
-            cache_dir=cache_dir,
-            use_cache=not no_cache,
-            workers=jobs,
-            decompose_timeout=decompose_timeout,
             progress=progress,
-            strict=strict,
-            max_faces=max_faces,
-            actuator_config=actuator_config,
-            gravcomp=gravcomp,
-            joint_sensors=not no_joint_sensors,
-            mujoco_extension=not no_mujoco_extension,
-            fuse_fixed=fuse_fixed,
-            floating_base=floating_base,
-            model_name=model_name,
-            calibration=calibration,
-            scene=not no_scene,
-            validate_model=not no_validate,
-            overwrite=overwrite,
-            trust_xacro=True if trust_xacro else None,  # None: $URDF2MJCF_TRUST_XACRO
-            verify=verify,
-            tolerances=Tolerances().with_values(tolerances),
+            **converter_keywords(converter),
         )
         try:
             report = api.convert(source, output, options)
@@ -299,7 +172,6 @@ def _view(
     conversion that fails on the way prints its error: line and the viewer keeps the
     last good model. See docs/viewing.md."""
     from . import api
-    from .batch import conversion_options  # the converter's options, as batch
     from .cache import default_cache_dir
     from .view.watch import serve
 
@@ -307,7 +179,7 @@ def _view(
         raise click.UsageError("--allow-origin is for the browser viewer, not --desktop")
     configure_logging(0, False)
     options = api.make_options(
-        args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"), **conversion_options(kw)
+        args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"), **converter_keywords(kw)
     )
 
     def describe(report: Any) -> list[str]:
@@ -325,7 +197,7 @@ def _view(
         source,
         lambda out: api.convert(source, out, options),
         describe,
-        scene=not kw["no_scene"],
+        scene=kw["scene"],
         port=port,
         browser=not no_browser,
         desktop=desktop,
@@ -355,7 +227,7 @@ view_command = click.Command(
             help="MuJoCo's desktop viewer instead of the browser one (needs a display).",
         ),
         allow_origin_param("the browser viewer"),
-        *shared_params(),  # the converter's options, as 'urdf2mjcf' and 'batch' take them
+        *converter_params(),  # the converter's options, as 'urdf2mjcf' and 'batch' take them
     ],
     help=_view.__doc__,
     context_settings={"help_option_names": ["-h", "--help"]},
@@ -416,12 +288,7 @@ def urdf2mjcf_main() -> None:
     run_command(urdf2mjcf_group)
 
 
-_CACHE_DIR_OPTION = click.option(
-    "--cache-dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    help="The cache folder (default: $URDF2MJCF_CACHE, else $XDG_CACHE_HOME/urdf2mjcf, "
-    "else ~/.cache/urdf2mjcf).",
-)
+_CACHE_DIR_OPTION = converter_option("cache_dir")
 
 
 def _cache_root(cache_dir: Path | None) -> Path:
@@ -522,18 +389,7 @@ DEFAULT_RECIPE = "recipes/imetro.yaml"
     is_flag=True,
     help="Build into a non-empty folder that is not an earlier build (its other files are kept).",
 )
-@click.option(
-    "-j",
-    "--jobs",
-    type=BoundedInt(0, 1024),
-    default=0,
-    help="Parallel decompositions, 0 .. 1024 (0 = one per CPU).",
-)
-@click.option(
-    "--cache-dir",
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Cache folder: loaded meshes and convex decompositions (see 'urdf2mjcf cache info').",
-)
+@converter_options(("workers", "cache_dir"))
 @click.option(
     "--demo", is_flag=True, help="Then replay the logistics demo in it (see facility-demo)."
 )
@@ -556,7 +412,7 @@ def make_facility_command(
     root: Path | None,
     no_components: bool,
     overwrite: bool,
-    jobs: int,
+    workers: int,
     cache_dir: Path | None,
     demo: bool,
     view: bool,
@@ -597,7 +453,7 @@ def make_facility_command(
             root=root,
             seed=seed,
             components=not no_components,
-            workers=jobs,
+            workers=workers,
             cache_dir=cache_dir,
             progress=progress,
             overwrite=overwrite,

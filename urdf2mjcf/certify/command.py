@@ -15,8 +15,15 @@ from typing import Any
 import click
 
 from ..calibrate.against import AgainstTolerances
-from ..cli_common import configure_logging, pairs, quiet_option
-from ..cli_types import BoundedInt, FiniteFloat, KeyedFloat
+from ..cli_common import (
+    configure_logging,
+    converter_keywords,
+    converter_option,
+    converter_options,
+    pairs,
+    quiet_option,
+)
+from ..cli_types import BoundedInt, FiniteFloat
 from ..errors import InputError
 from ..untrusted import printable
 from . import SAMPLES
@@ -24,9 +31,6 @@ from .kinematics import NameMap
 
 GENERATOR = "urdf2mjcf verify"
 """``"generator"`` of the JSON reports this command writes (and replaces)."""
-
-TOLERANCE = KeyedFloat(FiniteFloat(0.0, 1e6), "NAME")
-
 
 def load_name_map(path: Path) -> NameMap:
     """A YAML file ``{links: {LINK: BODY}, joints: {JOINT: MJCF_JOINT}}`` (both optional),
@@ -91,14 +95,7 @@ def load_model(path: Path) -> Any:
     type=click.Path(path_type=Path, dir_okay=False),
     help="Also write the certificate as JSON (replaces only a report of this command).",
 )
-@click.option(
-    "--tolerance",
-    "tolerances",
-    multiple=True,
-    type=TOLERANCE,
-    metavar="NAME=VALUE",
-    help="Change one tolerance (repeatable; the names: docs/cli.md).",
-)
+@converter_option("tolerances")
 @click.option(
     "--name-map",
     type=click.Path(path_type=Path, dir_okay=False),
@@ -111,19 +108,7 @@ def load_model(path: Path) -> Any:
     show_default=True,
     help="Random configurations within the limits, besides home.",
 )
-@click.option(
-    "--package-path",
-    multiple=True,
-    type=click.Path(path_type=Path, file_okay=False),
-    help="Folder whose sub-folders are ROS packages (repeatable).",
-)
-@click.option(
-    "--package", "packages", multiple=True, metavar="NAME=DIR", help="Location of one package."
-)
-@click.option("--no-ros-env", is_flag=True, help="Ignore ROS_PACKAGE_PATH and AMENT_PREFIX_PATH.")
-@click.option(
-    "--trust-xacro", is_flag=True, help="Run the description's code, as ROS's xacro does."
-)
+@converter_options(("package_paths", "packages", "use_environment", "trust_xacro"))
 @click.option(
     "--against",
     "against_logs",
@@ -156,10 +141,10 @@ def verify_command(
     tolerances: tuple[tuple[str, float], ...],
     name_map: Path | None,
     samples: int,
-    package_path: tuple[Path, ...],
-    packages: tuple[str, ...],
-    no_ros_env: bool,
-    trust_xacro: bool,
+    package_paths: tuple[Path, ...],
+    packages: tuple[tuple[str, str], ...],
+    use_environment: bool,
+    trust_xacro: bool | None,
     against_logs: tuple[Path, ...],
     q_rms: float,
     v_rms: float,
@@ -198,10 +183,14 @@ def verify_command(
         out.check_file(report_path, False, GENERATOR)
     options = api.make_options(
         args=pairs(xacro_args, ":=", "a xacro argument NAME:=VALUE"),
-        package_paths=package_path,
-        packages=pairs(packages, "=", "NAME=DIR"),
-        use_environment=not no_ros_env,
-        trust_xacro=True if trust_xacro else None,
+        **converter_keywords(
+            {
+                "package_paths": package_paths,
+                "packages": packages,
+                "use_environment": use_environment,
+                "trust_xacro": trust_xacro,
+            }
+        ),
     )
     doc = xacro.run(source, options.xacro)
     ref = load(doc)
