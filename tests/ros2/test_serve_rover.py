@@ -129,6 +129,16 @@ def test_the_latched_estop_stops_it_until_released(client):
     assert math.hypot(x2 - x1, y2 - y1) > 0.05
 
 
+def test_a_twist_out_of_the_declared_range_is_dropped(client, served):
+    """A speed past the task registry's bound for ``cmd_vel`` (1e6 m/s) is dropped, not
+    driven at the servos' limit; the rover stands still."""
+    time.sleep(1.0)  # the last drive's Twist lapses
+    x0, y0 = _base_xy(client)
+    _drive(client, 2e6, 1.0)
+    x1, y1 = _base_xy(client)
+    assert math.hypot(x1 - x0, y1 - y0) < 0.01
+
+
 def test_the_rovers_arm_follows_its_trajectory_controller(client):
     from tests.ros2.test_serve_e2e import _positions, _trajectory, _wait_sim
 

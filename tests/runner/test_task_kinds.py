@@ -235,3 +235,26 @@ def test_the_demo_docs_step_table_is_the_generated_one() -> None:
     text = (ROOT / "docs" / "demo.md").read_text()
     table = text.split("<!-- step-kinds begin -->\n", 1)[1].split("<!-- step-kinds end -->")[0]
     assert table == "\n".join(keys_table(("step",))) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("doc", "marker", "families"),
+    [("ros2.md", "ros2-commands", ("ros2",)), ("mira3d.md", "command-kinds", ("command",))],
+)
+def test_the_docs_command_tables_are_the_generated_ones(doc, marker, families) -> None:
+    text = (ROOT / "docs" / doc).read_text()
+    table = text.split(f"<!-- {marker} begin -->\n", 1)[1].split(f"<!-- {marker} end -->")[0]
+    assert table == "\n".join(keys_table(families)) + "\n"
+
+
+def test_a_ros2_command_field_is_checked_as_declared() -> None:
+    """A Twist's fields: finite numbers within the declared bounds, or the reason why not
+    (the rovers' ROS 2 bridge drops such a message with it)."""
+    from urdf2mjcf.runner.task_kinds import CMD_VEL
+
+    speed = CMD_VEL.param("linear_x")
+    assert speed.number(0.5) == 0.5 and speed.number(-3) == -3.0
+    assert speed.number(float("nan")) == "not a finite number"
+    assert speed.number(10**400) == "not a finite number"
+    assert speed.number(True).endswith("is not a finite number")
+    assert "out of range (at most 1e+06 either way)" in speed.number(2e6)

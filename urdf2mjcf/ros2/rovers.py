@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from ..runner.rover.sim import RoverSim
+from ..runner.task_kinds import CMD_VEL
 from . import controllers, keyexpr
 from .server import Extension, Server, ros_time
 from .session import Node, Publisher
@@ -143,10 +144,13 @@ class Rovers(Extension):
             self._imu[name] = node.publisher(f"/{name}/imu", "sensor_msgs/msg/Imu")
 
     def _on_twist(self, name: str, msg: dict[str, Any]) -> None:
-        v, w = float(msg["linear"]["x"]), float(msg["angular"]["z"])
-        if not (math.isfinite(v) and math.isfinite(w)):
-            self.server.warn.drop(f"/{name}/cmd_vel", "a speed that is not a finite number")
-            return
+        v = CMD_VEL.param("linear_x").number(msg["linear"]["x"])
+        w = CMD_VEL.param("angular_z").number(msg["angular"]["z"])
+        for field, x in (("linear.x", v), ("angular.z", w)):
+            if isinstance(x, str):
+                self.server.warn.drop(f"/{name}/cmd_vel", f"{field}: {x}")
+                return
+        assert isinstance(v, float) and isinstance(w, float)
 
         def apply() -> None:
             c = self.driven[name]

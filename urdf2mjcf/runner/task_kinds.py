@@ -2,15 +2,19 @@
 
 A :class:`TaskKind` names its family (``drive``/``arm``: a rover task plan's
 ``tasks``/``arm``; ``step``: a demo waypoints file's step; ``task``:
-``rover-drive --task``; ``command``: the console's ``POST /command`` fields) and its
+``rover-drive --task``; ``command``: the console's ``POST /command`` fields; ``ros2``:
+the fields of the rovers' ROS 2 commands) and its
 :class:`Param` s: type, unit, range, default, meaning. The plan's and the demo steps'
 key checks and defaults, ``rover-drive``'s flag defaults and ranges, the console's
-number bounds and the docs' table of plan keys are read from here
+and the ROS 2 rovers' number checks and the docs' tables of plan keys, steps and
+commands are read from here
 (``tests/runner/test_task_kinds.py`` checks no default is declared twice).
 """
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -109,6 +113,29 @@ class Param:
             return count(int(self.high), int(self.low))
         return ranged(self.low, self.high, self.low_open)
 
+    def number(self, value: Any) -> float | str:
+        """``value`` (a JSON or ROS message field) as this parameter's number, or why it is
+        refused: not a number (a bool is none, though Python counts it an int), not
+        finite, or out of the declared range."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return f"{json.dumps(value, default=str)[:40]} is not a finite number"
+        try:
+            x = float(value)
+        except OverflowError:  # an int too large for a float
+            x = math.inf
+        if not math.isfinite(x):
+            return "not a finite number"
+        if not self.within(x):
+            return f"{x:g} is out of range ({self.bounds})"
+        return x
+
+    @property
+    def bounds(self) -> str:
+        """The range in words, shorter where it is symmetric."""
+        if self.high is not None and self.low == -self.high:
+            return f"at most {self.high:g} either way"
+        return self.allowed
+
     def within(self, x: float) -> bool:
         """Whether the number ``x`` is in this parameter's range."""
         assert self.low is not None and self.high is not None
@@ -200,6 +227,18 @@ WHEELS = register(TaskKind("wheels", "command", (
 ARM = register(TaskKind("arm", "command", (
     _num("joint", -NUMBER_MAX, NUMBER_MAX, "rad", "an arm joint's target, by name"),
 ), "POST /command {arm: {JOINT: rad}}: arm targets, clipped to the joints' ranges"))  # fmt: skip
+
+
+CMD_VEL = register(TaskKind("cmd_vel", "ros2", (
+    _num("linear_x", -NUMBER_MAX, NUMBER_MAX, "m/s", "`linear.x`: the forward speed"),
+    _num("angular_z", -NUMBER_MAX, NUMBER_MAX, "rad/s",
+         "`angular.z`: the yaw rate (positive: left)"),
+), "`/<rover>/cmd_vel` (geometry_msgs/Twist): through the wheels, clipped to the servos'; "
+   "a message out of range is dropped, with a warning"))  # fmt: skip
+
+ESTOP = register(TaskKind("estop", "ros2", (
+    Param("data", bool, "", "true latches the emergency stop, false releases it"),
+), "`/<rover>/estop` (std_msgs/Bool): the console's emergency stop"))  # fmt: skip
 
 
 def _given(name: str, check: Check, type_: type, unit: str, doc: str, default: Any = None,

@@ -23,7 +23,6 @@ the cookie its answer sets). It serves ``CLIENTS_MAX`` connections at once.
 from __future__ import annotations
 
 import json
-import math
 import signal
 import threading
 import urllib.parse
@@ -61,25 +60,10 @@ DIGITS_MAX = 40
 
 def _number(value: Any, where: str, param: Param) -> float:
     """``value`` checked as ``param`` (a request field the task registry declares)."""
-    # bool is an int in Python, never a speed
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise CommandError(f"{where}: {json.dumps(value)[:40]} is not a finite number")
-    try:
-        x = float(value)
-    except OverflowError:
-        x = math.inf
-    if not math.isfinite(x):
-        raise CommandError(f"{where}: not a finite number")
-    if not param.within(x):
-        raise CommandError(f"{where}: {x:g} is out of range ({_bounds(param)})")
+    x = param.number(value)
+    if isinstance(x, str):
+        raise CommandError(f"{where}: {x}")
     return x
-
-
-def _bounds(param: Param) -> str:
-    high = param.high
-    if high is not None and param.low == -high:
-        return f"at most {high:g} either way"
-    return param.allowed
 
 
 def _digits(text: str) -> str:
