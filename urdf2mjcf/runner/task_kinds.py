@@ -13,12 +13,11 @@ commands are read from here
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
 from ..limits import TAG_COUNT
+from ..untrusted import BadNumber, excerpt, read_number
 from .checks import (
     DURATION_MAX,
     HINGE_STEPS_MAX,
@@ -114,27 +113,19 @@ class Param:
         return ranged(self.low, self.high, self.low_open)
 
     def number(self, value: Any) -> float | str:
-        """``value`` (a JSON or ROS message field) as this parameter's number, or why it is
-        refused: not a number (a bool is none, though Python counts it an int), not
-        finite, or out of the declared range."""
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            return f"{json.dumps(value, default=str)[:40]} is not a finite number"
+        """``value`` (a JSON or ROS message field: a number, never its text) as this
+        parameter's number, or why it is refused, in the words of the one number reader
+        (:func:`urdf2mjcf.untrusted.read_number`)."""
+        if isinstance(value, str):
+            return f"'{excerpt(value, 40)}' is not a number"
+        assert self.low is not None and self.high is not None
         try:
-            x = float(value)
-        except OverflowError:  # an int too large for a float
-            x = math.inf
-        if not math.isfinite(x):
-            return "not a finite number"
-        if not self.within(x):
-            return f"{x:g} is out of range ({self.bounds})"
+            x = read_number(value, low=self.low, high=self.high, low_open=self.low_open)
+        except BadNumber as exc:
+            return str(exc)
+        if self.high_open and x == self.high:
+            return f"{x:g} is out of range ({self.allowed})"
         return x
-
-    @property
-    def bounds(self) -> str:
-        """The range in words, shorter where it is symmetric."""
-        if self.high is not None and self.low == -self.high:
-            return f"at most {self.high:g} either way"
-        return self.allowed
 
     def within(self, x: float) -> bool:
         """Whether the number ``x`` is in this parameter's range."""
