@@ -77,40 +77,50 @@ def record(
     seconds: float = 10.0,
     rate: float = 500.0,
     seed: int = 0,
-    amplitude: float = 0.3,
+    amplitude: float | np.ndarray = 0.3,
+    center: np.ndarray | None = None,
     q_noise: float = 2e-4,
     v_noise: float = 5e-3,
     still: tuple[int, ...] = (),
 ) -> Path:
     """A CSV log of ``model`` tracking a multi-sine sent and sampled at ``rate`` Hz, with noise;
-    the actuators ``still`` hold 0."""
+    the actuators ``still`` hold ``center`` (default 0; ``amplitude``: one, or one per
+    actuator). A floating base (a free joint) is logged as the calibration reads it: its
+    position and quaternion (``q.<joint>.x`` .. ``.qz``), its velocity as MuJoCo holds it
+    (``v.<joint>.vx`` .. ``.wz``)."""
     m = mujoco.MjModel.from_xml_path(str(model))
     d = mujoco.MjData(m)
     rng = np.random.default_rng(seed)
     freqs = np.array([0.2, 0.5, 0.9, 1.4, 2.0])
     phase = rng.uniform(0, 2 * np.pi, (m.nu, len(freqs)))
-    gain = np.array([0.0 if a in still else amplitude for a in range(m.nu)])
+    gain = np.broadcast_to(np.asarray(amplitude, dtype=float), (m.nu,)).copy()
+    gain[list(still)] = 0.0
+    offset = np.zeros(m.nu) if center is None else np.asarray(center, dtype=float)
     every = max(1, int(round(1.0 / (rate * m.opt.timestep))))  # steps per log sample
     rows = []
     for k in range(int(round(seconds / m.opt.timestep))):
         t = k * m.opt.timestep
         if k % every == 0:  # the controller sends a command at the log's rate
-            d.ctrl[:] = gain * 2 / len(freqs) * np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
-        if k % every == 0:
+            sines = np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
+            d.ctrl[:] = offset + gain * 2 / len(freqs) * sines
             rows.append([t, *d.qpos, *d.qvel, *d.ctrl])
         mujoco.mj_step(m, d)
     data = np.array(rows)
-    n = m.njnt
-    data[:, 1 : 1 + n] += rng.normal(0, q_noise, (len(data), n))
-    data[:, 1 + n : 1 + 2 * n] += rng.normal(0, v_noise, (len(data), n))
-    names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(n)]
+    data[:, 1 : 1 + m.nq] += rng.normal(0, q_noise, (len(data), m.nq))
+    data[:, 1 + m.nq : 1 + m.nq + m.nv] += rng.normal(0, v_noise, (len(data), m.nv))
+    q_cols: list[str] = []
+    v_cols: list[str] = []
+    for j in range(m.njnt):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+        if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE):
+            q_cols += [f"q.{name}.{c}" for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+            v_cols += [f"v.{name}.{c}" for c in ("vx", "vy", "vz", "wx", "wy", "wz")]
+        else:
+            q_cols.append(f"q.{name}")
+            v_cols.append(f"v.{name}")
+    assert len(q_cols) == m.nq and len(v_cols) == m.nv  # qpos and qvel in joint order
     acts = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in range(m.nu)]
-    header = [
-        "t",
-        *(f"q.{j}" for j in names),
-        *(f"v.{j}" for j in names),
-        *(f"u.{a}" for a in acts),
-    ]
+    header = ["t", *q_cols, *v_cols, *(f"u.{a}" for a in acts)]
     lines = [",".join(header)] + [",".join(f"{x:.9g}" for x in row) for row in data]
     dest.write_text("\n".join(lines) + "\n")
     return dest

@@ -114,3 +114,24 @@ def test_an_unknown_kind_and_a_model_without_actuators_are_one_error(case, tmp_p
     res = run("urdf2mjcf", "calibrate", str(passive), str(log), "-o", "cal", cwd=tmp_path)
     assert_one_error(res, "no actuators")
     assert not (tmp_path / "cal").exists()
+
+
+def test_a_ball_joint_or_two_free_bodies_are_refused_in_words():
+    import mujoco
+
+    from urdf2mjcf.calibrate import params
+    from urdf2mjcf.errors import InputError
+
+    body = '<body><joint type="{}"/><geom size="0.1" mass="1"/></body>'
+    ball = mujoco.MjModel.from_xml_string(f"<mujoco><worldbody>{body.format('ball')}</worldbody></mujoco>")
+    with pytest.raises(InputError, match="is a ball joint"):
+        params.joint_names(ball)
+    two = mujoco.MjModel.from_xml_string(
+        f"<mujoco><worldbody>{body.format('free') * 2}</worldbody></mujoco>"
+    )
+    with pytest.raises(InputError, match="2 free joints; calibrate fits one robot"):
+        params.joint_names(two)
+    one = mujoco.MjModel.from_xml_string(
+        f"<mujoco><worldbody>{body.format('free')}</worldbody></mujoco>"
+    )
+    assert params.joint_names(one) == [] and params.base_joint(one) == "joint 0"

@@ -69,14 +69,19 @@ class Against:
 
 
 def against(
-    m: Any, log_paths: Sequence[Path], tolerances: AgainstTolerances, window: float
+    model_path: Path, log_paths: Sequence[Path], tolerances: AgainstTolerances, window: float
 ) -> Against:
-    """The compiled model ``m``'s tracking of the logs at ``log_paths``."""
+    """The tracking of the logs at ``log_paths`` by the model at ``model_path``."""
+    from ..mjcf_input import load_model
+
+    m = load_model(model_path)
     joints, actuators = params.joint_names(m), params.actuator_names(m)
     servos = params.position_servos(m)
     dt = float(m.opt.timestep)
+    floating = params.base_joint(m)
     trajectories = [
-        logs.resample(logs.read(p, actuators, servos), joints, actuators, dt) for p in log_paths
+        logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
+        for p in log_paths
     ]
     replay = fit.Replay(params.Applier(m, []), trajectories, fit.FitConfig(window=window))
     return Against(joints, replay.tracking(np.zeros(0)), tolerances)

@@ -2,7 +2,9 @@
 
 The CSV's header is ``t`` (seconds), then ``q.<joint>`` and ``v.<joint>`` (measured
 position and velocity, rad or m and per second) and ``u.<actuator>`` (the command sent to
-each actuator, in its own unit). Samples need not be sorted or evenly spaced: a sample with
+each actuator, in its own unit); a floating base's state is ``q.<base>.x`` ..
+``q.<base>.qz`` and ``v.<base>.vx`` .. ``v.<base>.wz`` (:data:`.params.BASE_Q`,
+:data:`.params.BASE_V`). Samples need not be sorted or evenly spaced: a sample with
 a NaN is dropped from that column, repeated times keep their first sample, and every column
 is interpolated onto the model's timestep (positions and velocities linearly, commands held
 as a real drive holds the last command it received).
@@ -61,17 +63,27 @@ class Trajectory:
     """(n, njoint) measured velocities."""
     u: np.ndarray
     """(n, nu) commands, the model's actuator order; row k acts from step k to k + 1."""
+    base_q: np.ndarray | None = None
+    """(n, 7) a floating base's measured position and unit quaternion (``params.BASE_Q``);
+    None for a fixed base."""
+    base_v: np.ndarray | None = None
+    """(n, 6) its measured velocity (``params.BASE_V``)."""
+
+    def rows(self, name: str, part: slice) -> Trajectory:
+        """The rows ``part`` of this trajectory, named ``name``."""
+        base_q = None if self.base_q is None else self.base_q[part]
+        base_v = None if self.base_v is None else self.base_v[part]
+        return Trajectory(
+            name, self.dt, self.q[part], self.v[part], self.u[part], base_q, base_v
+        )
 
     def split(self, fraction: float) -> tuple[Trajectory, Trajectory]:
         """The first ``1 - fraction`` of the rows and the rest (held out)."""
         cut = int(round(len(self.q) * (1.0 - fraction)))
-        head = Trajectory(
-            f"{self.name} (fitted part)", self.dt, self.q[:cut], self.v[:cut], self.u[:cut]
+        return (
+            self.rows(f"{self.name} (fitted part)", slice(None, cut)),
+            self.rows(f"{self.name} (held out)", slice(cut, None)),
         )
-        tail = Trajectory(
-            f"{self.name} (held out)", self.dt, self.q[cut:], self.v[cut:], self.u[cut:]
-        )
-        return head, tail
 
 
 def read_csv(path: Path) -> Log:
@@ -328,20 +340,30 @@ def _with_trajectories(
     return _columns(path, list(index), data, sparse=True)
 
 
-def resample(found: Log, joints: list[str], actuators: list[str], dt: float) -> Trajectory:
+def resample(
+    found: Log, joints: list[str], actuators: list[str], dt: float, base: str | None = None
+) -> Trajectory:
     """``found`` on a grid of step ``dt`` (the model's timestep), columns in the model's
     order; :class:`InputError` when it does not describe this model: a joint or actuator
-    the log lacks, or no column of the model at all (a log of another robot)."""
+    the log lacks, or no column of the model at all (a log of another robot). ``base``: the
+    model's floating base, whose state the log must hold too (``q.<base>.x`` ..
+    ``v.<base>.wz``, :data:`~.params.BASE_Q` and :data:`~.params.BASE_V`)."""
+    from .params import BASE_Q, BASE_V
+
     path = found.path
+    base_q = [f"{base}.{c}" for c in BASE_Q] if base else []
+    base_v = [f"{base}.{c}" for c in BASE_V] if base else []
     named = set(found.q) | set(found.v) | set(found.u)
-    ours = set(joints) | set(actuators)
+    ours = set(joints) | set(actuators) | set(base_q) | set(base_v)
     if not named & ours:
         raise InputError(
             "log names none of the model's joints or actuators (a log of another robot?): "
             f"log has {_names(sorted(named))}; model has {_names(joints)}",
             file=path,
         )
-    unknown = sorted(set(found.q) - set(joints)) + sorted(set(found.u) - set(actuators))
+    unknown = sorted(set(found.q) - set(joints) - set(base_q)) + sorted(
+        set(found.u) - set(actuators)
+    )
     if unknown:
         log.warning(
             "%s: columns of no joint or actuator of the model ignored: %s", path, _names(unknown)
@@ -352,6 +374,16 @@ def resample(found: Log, joints: list[str], actuators: list[str], dt: float) -> 
         raise InputError(
             f"log lacks {_names(lacking)}: every joint's position and every actuator's "
             "command must be logged to replay it",
+            file=path,
+        )
+    lacking = [f"q.{c}" for c in base_q if c not in found.q]
+    lacking += [f"v.{c}" for c in base_v if c not in found.v]
+    if lacking:
+        raise InputError(
+            f"log lacks {_names(lacking)}: the model's base is free (joint "
+            f"'{untrusted.excerpt(base or '', 60)}'), and its state (position, orientation "
+            "and velocity, as q.<base>.x .. v.<base>.wz) must be logged to replay it; a "
+            "bag's JointState does not hold it: log it in a CSV (see docs/calibrate.md)",
             file=path,
         )
     n = int(math.floor((found.end - found.start) / dt + 1e-9)) + 1
@@ -371,7 +403,18 @@ def resample(found: Log, joints: list[str], actuators: list[str], dt: float) -> 
         if actuators
         else np.zeros((n, 0))
     )
-    return Trajectory(str(path), dt, q, np.column_stack(vs), u)
+    if not base:
+        return Trajectory(str(path), dt, q, np.column_stack(vs), u)
+    pose = np.column_stack([np.interp(grid, *found.q[c]) for c in base_q])
+    norm = np.linalg.norm(pose[:, 3:], axis=1)
+    if np.any(norm < 0.5) or np.any(norm > 1.5):
+        raise InputError(
+            f"columns q.{base_q[3]} .. q.{base_q[6]} are not a unit quaternion (w, x, y, z)",
+            file=path,
+        )
+    pose[:, 3:] /= norm[:, None]  # interpolated between samples: back onto the unit sphere
+    twist = np.column_stack([np.interp(grid, *found.v[c]) for c in base_v])
+    return Trajectory(str(path), dt, q, np.column_stack(vs), u, pose, twist)
 
 
 def _hold(grid: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:

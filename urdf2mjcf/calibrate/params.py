@@ -72,22 +72,55 @@ class Param:
         return "the logs"
 
 
-def joint_names(m: Any) -> list[str]:
-    """The model's hinge and slide joints, in order; :class:`InputError` for another kind
-    (a free or ball joint's state is not what a joint log holds)."""
-    names = []
+BASE_Q = ("x", "y", "z", "qw", "qx", "qy", "qz")
+"""A floating base's logged position (m, in the world) and orientation (a unit
+quaternion, w first): columns ``q.<base>.x`` .. ``q.<base>.qz``, as MuJoCo's free joint
+holds them."""
+BASE_V = ("vx", "vy", "vz", "wx", "wy", "wz")
+"""A floating base's logged velocity, as MuJoCo's free joint holds it: linear in the
+world (m/s), angular in the base's own frame (rad/s, as a body-mounted IMU's gyro reads
+it): columns ``v.<base>.vx`` .. ``v.<base>.wz``."""
+
+
+def joint_ids(m: Any) -> list[int]:
+    """The model's hinge and slide joints, in order: a floating base (one free joint) is
+    left out, its state logged apart (:func:`base_joint`); :class:`InputError` for a ball
+    joint (its state is not what a joint log holds)."""
+    ids = []
+    hinge_or_slide = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     for j in range(m.njnt):
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}"
-        if int(m.jnt_type[j]) not in (
-            int(mujoco.mjtJoint.mjJNT_HINGE),
-            int(mujoco.mjtJoint.mjJNT_SLIDE),
-        ):
+        kind = int(m.jnt_type[j])
+        if kind == int(mujoco.mjtJoint.mjJNT_BALL):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}"
             raise InputError(
-                f"joint '{name}' is a free or ball joint; calibrate fits arms whose joints "
-                "are hinges and slides (fix the base: convert without --floating-base)"
+                f"joint '{name}' is a ball joint; calibrate fits robots whose joints are "
+                "hinges and slides, on a fixed or one floating base"
             )
-        names.append(name)
-    return names
+        if kind in hinge_or_slide:
+            ids.append(j)
+    base_joint(m)  # at most one floating base
+    return ids
+
+
+def joint_names(m: Any) -> list[str]:
+    """The names of :func:`joint_ids`' joints."""
+    return [
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}" for j in joint_ids(m)
+    ]
+
+
+def base_joint(m: Any) -> str | None:
+    """The name of the model's floating base (its one free joint), or None for a fixed
+    base; :class:`InputError` for more than one (a log follows one robot)."""
+    free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    if len(free) > 1:
+        raise InputError(
+            f"the model has {len(free)} free joints; calibrate fits one robot, on a fixed "
+            "or one floating base (give the robot's own model, not a world of several)"
+        )
+    if not free:
+        return None
+    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, free[0]) or f"joint {free[0]}"
 
 
 def actuator_names(m: Any) -> list[str]:

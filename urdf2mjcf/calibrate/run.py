@@ -58,6 +58,7 @@ def calibrate(
 
     m = load_model(model_path)
     joints = params.joint_names(m)
+    floating = params.base_joint(m)
     actuators = params.actuator_names(m)
     servos = params.position_servos(m)
     if not m.nu:
@@ -69,7 +70,7 @@ def calibrate(
     fitted: list[logs.Trajectory] = []
     held: list[logs.Trajectory] = []
     for p in log_paths:
-        tr = logs.resample(logs.read(p, actuators, servos), joints, actuators, dt)
+        tr = logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
         if cfg.holdout:
             fitted.append(tr)
         else:
@@ -77,7 +78,9 @@ def calibrate(
             fitted.append(head)
             held.append(tail)
     for p in cfg.holdout:
-        held.append(logs.resample(logs.read(p, actuators, servos), joints, actuators, dt))
+        held.append(
+            logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
+        )
     short = [t.name for t in fitted + held if len(t.q) < 4]
     if short:
         raise InputError(f"too little data in {short[0]}: a log must span several model timesteps")

@@ -234,7 +234,7 @@ def _against(
         if report_path.resolve() in (model.resolve(), *(p.resolve() for p in logs)):
             raise click.BadParameter("is an input file", param_hint="--report")
         out.check_file(report_path, False, GENERATOR)
-    found = against(load_model(model), logs, tol, FitConfig.window)
+    found = against(model, logs, tol, FitConfig.window)
     if report_path:
         data = {"model": str(model), "logs": [str(p) for p in logs], "against": found.to_dict()}
         out.write_json(report_path, data, GENERATOR)
