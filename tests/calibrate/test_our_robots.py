@@ -32,28 +32,39 @@ def robot(tmp_path_factory) -> Path:
     return out / "components" / "imetro_robot" / "imetro_robot.xml"
 
 
-def test_the_imetro_robot_recovers_its_arms_damping(robot, tmp_path):
-    m = mujoco.MjModel.from_xml_path(str(robot))
-    nominal = {j: float(m.dof_damping[m.jnt_dofadr[m.joint(j).id]]) for j in PERTURBED}
+def _tripled(model: Path, joints, folder: Path) -> tuple[dict[str, float], Path]:
+    """The truth: a copy of ``model``'s folder with those joints' damping tripled (the
+    MJCF edited with lxml); their true damping and the copy's model."""
+    m = mujoco.MjModel.from_xml_path(str(model))
+    nominal = {j: float(m.dof_damping[m.jnt_dofadr[m.joint(j).id]]) for j in joints}
     assert all(v > 0 for v in nominal.values())
     truth = {j: 3.0 * v for j, v in nominal.items()}
-    real = tmp_path / "real"
-    shutil.copytree(robot.parent, real)
-    tree = etree.parse(str(robot))
+    shutil.copytree(model.parent, folder)
+    tree = etree.parse(str(model))
     for el in tree.iter("joint"):
         if el.get("name") in truth:
             el.set("damping", repr(truth[el.get("name")]))
-    (real / robot.name).write_bytes(etree.tostring(tree))
-    log = arm.record(real / robot.name, tmp_path / "log.csv", seconds=8.0, amplitude=0.2)
+    (folder / model.name).write_bytes(etree.tostring(tree))
+    return truth, folder / model.name
+
+
+def _calibrated(model: Path, log: Path, fixed, tmp_path: Path) -> dict:
+    """``urdf2mjcf calibrate`` of the nominal ``model`` with every damping free but the
+    ``fixed`` joints'; its report."""
     params = tmp_path / "params.yaml"
-    fixed = [*FIXED, "finger_1_joint", "finger_2_joint"]
     params.write_text("joints:\n" + "".join(f"  {j}: {{damping: false}}\n" for j in fixed))
     res = run(
-        "urdf2mjcf", "calibrate", str(robot), str(log), "-o", "cal", "--free", "damping",
+        "urdf2mjcf", "calibrate", str(model), str(log), "-o", "cal", "--free", "damping",
         "--params", str(params), cwd=tmp_path,
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
-    report = json.loads((tmp_path / "cal" / "report.json").read_text())
+    return json.loads((tmp_path / "cal" / "report.json").read_text())
+
+
+def test_the_imetro_robot_recovers_its_arms_damping(robot, tmp_path):
+    truth, real = _tripled(robot, PERTURBED, tmp_path / "real")
+    log = arm.record(real, tmp_path / "log.csv", seconds=8.0, amplitude=0.2)
+    report = _calibrated(robot, log, [*FIXED, "finger_1_joint", "finger_2_joint"], tmp_path)
     found = {p["name"]: p["after"] for p in report["parameters"]}
     assert set(found) == {f"{j}.damping" for j in PERTURBED}
     for j, value in truth.items():
@@ -92,29 +103,15 @@ def test_a_rover_on_its_floating_base_recovers_its_arms_damping(rover, tmp_path)
     m = mujoco.MjModel.from_xml_path(str(rover))
     free = [m.joint(j).name for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
     assert len(free) == 1
-    truth = {j: 3.0 * float(m.dof_damping[m.jnt_dofadr[m.joint(j).id]]) for j in ROVER_PERTURBED}
-    real = tmp_path / "real"
-    shutil.copytree(rover.parent, real)
-    tree = etree.parse(str(rover))
-    for el in tree.iter("joint"):
-        if el.get("name") in truth:
-            el.set("damping", repr(truth[el.get("name")]))
-    (real / rover.name).write_bytes(etree.tostring(tree))
-    log = _rover_log(real / rover.name, tmp_path / "log.csv", m)
+    truth, real = _tripled(rover, ROVER_PERTURBED, tmp_path / "real")
+    log = _rover_log(real, tmp_path / "log.csv", m)
     assert f"q.{free[0]}.qw" in log.read_text().split("\n", 1)[0]
     fixed = [
         m.joint(j).name
         for j in range(m.njnt)
         if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE and m.joint(j).name not in truth
     ]
-    params = tmp_path / "params.yaml"
-    params.write_text("joints:\n" + "".join(f"  {j}: {{damping: false}}\n" for j in fixed))
-    res = run(
-        "urdf2mjcf", "calibrate", str(rover), str(log), "-o", "cal", "--free", "damping",
-        "--params", str(params), cwd=tmp_path,
-    )  # fmt: skip
-    assert res.returncode == 0, res.stderr
-    report = json.loads((tmp_path / "cal" / "report.json").read_text())
+    report = _calibrated(rover, log, fixed, tmp_path)
     found = {p["name"]: p["after"] for p in report["parameters"]}
     assert set(found) == {f"{j}.damping" for j in truth}
     for j, value in truth.items():
