@@ -135,3 +135,26 @@ def test_a_ball_joint_or_two_free_bodies_are_refused_in_words():
         f"<mujoco><worldbody>{body.format('free')}</worldbody></mujoco>"
     )
     assert params.joint_names(one) == [] and params.base_joint(one) == "joint 0"
+
+
+def test_an_unnamed_floating_base_starts_each_window_from_its_logged_state():
+    """The base is found by id, not by the name the log's columns use for it ("joint 0"
+    when it has none): its logged pose is the replay's start."""
+    import mujoco
+    import numpy as np
+
+    from urdf2mjcf.calibrate import fit, logs, params
+
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body><freejoint/><geom size="0.1" mass="1"/>'
+        '<body><joint name="h"/><geom size="0.05" mass="0.5" pos="0 0 0.2"/></body>'
+        '</body></worldbody><actuator><motor joint="h"/></actuator></mujoco>'
+    )
+    n = 10
+    pose = np.tile([1.0, 2.0, 3.0, 1.0, 0.0, 0.0, 0.0], (n, 1))
+    tr = logs.Trajectory(
+        "log", m.opt.timestep, np.zeros((n, 1)), np.zeros((n, 1)), np.zeros((n, 1)),
+        pose, np.zeros((n, 6)),
+    )  # fmt: skip
+    replay = fit.Replay(params.Applier(m, []), [tr], fit.FitConfig())
+    assert replay.windows.start[0, 1:4].tolist() == [1.0, 2.0, 3.0]  # after the time

@@ -23,7 +23,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from .logs import Trajectory
-from .params import Applier, Param, base_joint, joint_ids
+from .params import Applier, Param, base_joint_id, joint_ids
 
 log = logging.getLogger(__name__)
 
@@ -97,11 +97,10 @@ class Replay:
         ids = joint_ids(m)
         self.qadr = np.array(m.jnt_qposadr[ids], dtype=int)
         self.vadr = np.array(m.jnt_dofadr[ids], dtype=int)
-        base = base_joint(m)
         # a floating base: each window starts from its logged state too
-        b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, base) if base else -1
-        base_q = slice(int(m.jnt_qposadr[b]), int(m.jnt_qposadr[b]) + 7) if base else None
-        base_v = slice(int(m.jnt_dofadr[b]), int(m.jnt_dofadr[b]) + 6) if base else None
+        b = base_joint_id(m)
+        base_q = None if b is None else slice(int(m.jnt_qposadr[b]), int(m.jnt_qposadr[b]) + 7)
+        base_v = None if b is None else slice(int(m.jnt_dofadr[b]), int(m.jnt_dofadr[b]) + 6)
         self.nq, self.nv = m.nq, m.nv
         steps = max(2, int(round(cfg.window / self.dt)))
         # one length for every window (they are replayed in one batch), at most ``steps``,
@@ -119,7 +118,7 @@ class Replay:
                 data.qvel[self.vadr] = tr.v[k]
                 if base_q is not None and base_v is not None:
                     if tr.base_q is None or tr.base_v is None:
-                        raise ValueError(f"{tr.name}: no state of the floating base {base!r}")
+                        raise ValueError(f"{tr.name}: no state of the floating base")
                     data.qpos[base_q] = tr.base_q[k]
                     data.qvel[base_v] = tr.base_v[k]
                 state = np.empty(size)

@@ -98,7 +98,7 @@ def joint_ids(m: Any) -> list[int]:
             )
         if kind in hinge_or_slide:
             ids.append(j)
-    base_joint(m)  # at most one floating base
+    base_joint_id(m)  # at most one floating base
     return ids
 
 
@@ -109,8 +109,8 @@ def joint_names(m: Any) -> list[str]:
     ]
 
 
-def base_joint(m: Any) -> str | None:
-    """The name of the model's floating base (its one free joint), or None for a fixed
+def base_joint_id(m: Any) -> int | None:
+    """The id of the model's floating base (its one free joint), or None for a fixed
     base; :class:`InputError` for more than one (a log follows one robot)."""
     free = [j for j in range(m.njnt) if int(m.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_FREE)]
     if len(free) > 1:
@@ -118,9 +118,15 @@ def base_joint(m: Any) -> str | None:
             f"the model has {len(free)} free joints; calibrate fits one robot, on a fixed "
             "or one floating base (give the robot's own model, not a world of several)"
         )
-    if not free:
+    return free[0] if free else None
+
+
+def base_joint(m: Any) -> str | None:
+    """The name of :func:`base_joint_id`'s joint (the log's columns are named by it)."""
+    j = base_joint_id(m)
+    if j is None:
         return None
-    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, free[0]) or f"joint {free[0]}"
+    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}"
 
 
 def actuator_names(m: Any) -> list[str]:
