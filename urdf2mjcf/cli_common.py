@@ -17,9 +17,8 @@ from typing import Any, TypeVar
 import click
 from click.core import ParameterSource
 
-from .cli_types import BoundedInt, FiniteFloat, KeyedFloat
+from .cli_types import BoundedInt, FiniteFloat, Keyed, KeyedChoice, KeyedFloat
 from .options import BY_KEYWORD, OPTIONS, Choice, Number, Option
-from .untrusted import excerpt
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -30,31 +29,6 @@ def configure_logging(verbose: int, quiet: bool) -> None:
     logging.basicConfig(
         level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr
     )
-
-
-class KeyedChoice(click.ParamType):
-    """``KEY=CHOICE``, the choice one of ``choices``; converts to ``(key, choice)``."""
-
-    name = "key=choice"
-
-    def __init__(self, choices: tuple[str, ...], key_name: str = "KEY") -> None:
-        self.choices = choices
-        self.key_name = key_name
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if isinstance(value, tuple):
-            return value
-        key, found, choice = str(value).partition("=")
-        if not found or not key:
-            self.fail(f"'{excerpt(str(value), 40)}' is not {self.key_name}=VALUE", param, ctx)
-        if choice not in self.choices:
-            self.fail(
-                f"{excerpt(key, 40)}: '{excerpt(choice, 20)}' is not one of "
-                f"{', '.join(self.choices)}",
-                param,
-                ctx,
-            )
-        return (key, choice)
 
 
 def pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
@@ -69,23 +43,6 @@ def pairs(values: tuple[str, ...], sep: str, what: str) -> dict[str, str]:
     return out
 
 
-class KeyedText(click.ParamType):
-    """``KEY=TEXT``; converts to ``(key, text)``."""
-
-    name = "key=text"
-
-    def __init__(self, metavar: str) -> None:
-        self.metavar = metavar
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if isinstance(value, tuple):
-            return value
-        key, found, text = str(value).partition("=")
-        if not found or not key:
-            self.fail(f"'{excerpt(str(value), 40)}' is not {self.metavar}", param, ctx)
-        return (key, text)
-
-
 def _click_type(option: Option) -> Any:
     value = option.value
     if isinstance(value, Number):
@@ -98,7 +55,7 @@ def _click_type(option: Option) -> Any:
     if isinstance(value, Choice):
         return KeyedChoice(value.choices, option.key) if option.key else click.Choice(value.choices)
     if option.key:
-        return KeyedText(option.metavar or f"{option.key}=VALUE")
+        return Keyed(option.key, (option.metavar or "").partition("=")[2] or "VALUE")
     if value in ("file", "folder"):
         return click.Path(path_type=Path, dir_okay=value == "folder", file_okay=value == "file")
     return None  # text

@@ -1,4 +1,4 @@
-"""Checked number types for command-line options.
+"""Checked number and ``KEY=VALUE`` types for command-line options.
 
 A number a user types is untrusted input like any file: ``nan``, ``inf`` and
 ``1e300`` parse as floats, and a negative count parses as an int. These click
@@ -11,8 +11,9 @@ API:
 - ``FiniteFloat(low, high, low_open=False)``: a finite float in ``[low, high]``
   (``(low, high]`` with ``low_open``).
 - ``BoundedInt(low, high)``: an integer in ``[low, high]``.
-- ``KeyedFloat(type, key_name)``: ``KEY=NUMBER`` with the number checked by a
-  ``FiniteFloat``; converts to ``(key, value)``.
+- ``Keyed(key_name, value_name)``: ``KEY=VALUE``, the value as given; converts to
+  ``(key, value)``. ``KeyedFloat(type, key_name)``: the value a number checked by a
+  ``FiniteFloat``; ``KeyedChoice(choices, key_name)``: one of ``choices``.
 """
 
 from __future__ import annotations
@@ -97,22 +98,66 @@ class BoundedInt(click.ParamType):
         return f"BoundedInt({self.low!r}, {self.high!r})"
 
 
-class KeyedFloat(click.ParamType):
-    """``KEY=NUMBER``, the number checked by ``number``; converts to ``(key, value)``."""
+class Keyed(click.ParamType):
+    """``KEY=VALUE``; converts to ``(key, value)``, the value as :meth:`checked` reads it
+    (here: the text as given)."""
 
-    name = "key=number"
+    name = "key=value"
 
-    def __init__(self, number: FiniteFloat, key_name: str = "KEY") -> None:
-        self.number = number
+    def __init__(self, key_name: str = "KEY", value_name: str = "VALUE") -> None:
         self.key_name = key_name
+        self.value_name = value_name
+
+    def checked(
+        self, key: str, raw: str, param: click.Parameter | None, ctx: click.Context | None
+    ) -> Any:
+        return raw
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         if isinstance(value, tuple):
             return value
         key, found, raw = str(value).partition("=")
         if not found or not key:
-            self.fail(f"'{excerpt(str(value), 40)}' is not {self.key_name}=NUMBER", param, ctx)
+            shown = f"{self.key_name}={self.value_name}"
+            self.fail(f"'{excerpt(str(value), 40)}' is not {shown}", param, ctx)
+        return (key, self.checked(key, raw, param, ctx))
+
+
+class KeyedFloat(Keyed):
+    """``KEY=NUMBER``, the number checked by ``number``; converts to ``(key, value)``."""
+
+    name = "key=number"
+
+    def __init__(self, number: FiniteFloat, key_name: str = "KEY") -> None:
+        super().__init__(key_name, "NUMBER")
+        self.number = number
+
+    def checked(
+        self, key: str, raw: str, param: click.Parameter | None, ctx: click.Context | None
+    ) -> Any:
         result = self.number.check(raw)
         if isinstance(result, str):
             self.fail(f"{excerpt(key, 40)}: {result}", param, ctx)
-        return (key, result)
+        return result
+
+
+class KeyedChoice(Keyed):
+    """``KEY=CHOICE``, the choice one of ``choices``; converts to ``(key, choice)``."""
+
+    name = "key=choice"
+
+    def __init__(self, choices: tuple[str, ...], key_name: str = "KEY") -> None:
+        super().__init__(key_name)
+        self.choices = choices
+
+    def checked(
+        self, key: str, raw: str, param: click.Parameter | None, ctx: click.Context | None
+    ) -> Any:
+        if raw not in self.choices:
+            self.fail(
+                f"{excerpt(key, 40)}: '{excerpt(raw, 20)}' is not one of "
+                f"{', '.join(self.choices)}",
+                param,
+                ctx,
+            )
+        return raw
