@@ -82,12 +82,16 @@ def record(
     q_noise: float = 2e-4,
     v_noise: float = 5e-3,
     still: tuple[int, ...] = (),
+    odometry: list | None = None,
 ) -> Path:
     """A CSV log of ``model`` tracking a multi-sine sent and sampled at ``rate`` Hz, with noise;
     the actuators ``still`` hold ``center`` (default 0; ``amplitude``: one, or one per
     actuator). A floating base (a free joint) is logged as the calibration reads it: its
     position and quaternion (``q.<joint>.x`` .. ``.qz``), its velocity as MuJoCo holds it
-    (``v.<joint>.vx`` .. ``.wz``)."""
+    (``v.<joint>.vx`` .. ``.wz``). ``odometry``, where given, gets one row per sample of
+    that base body's state as a ``nav_msgs/Odometry`` holds it, from MuJoCo's own body
+    quantities (``xpos``, ``xquat`` and ``mj_objectVelocity`` in the body's frame), without
+    noise: ``t``, position, quaternion (x, y, z, w), linear and angular velocity."""
     m = mujoco.MjModel.from_xml_path(str(model))
     d = mujoco.MjData(m)
     rng = np.random.default_rng(seed)
@@ -98,12 +102,20 @@ def record(
     offset = np.zeros(m.nu) if center is None else np.asarray(center, dtype=float)
     every = max(1, int(round(1.0 / (rate * m.opt.timestep))))  # steps per log sample
     rows = []
+    free = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    body = int(m.jnt_bodyid[free[0]]) if free else -1
+    twist = np.zeros(6)
     for k in range(int(round(seconds / m.opt.timestep))):
         t = k * m.opt.timestep
         if k % every == 0:  # the controller sends a command at the log's rate
             sines = np.sin(2 * np.pi * freqs * t + phase).sum(axis=1)
             d.ctrl[:] = offset + gain * 2 / len(freqs) * sines
             rows.append([t, *d.qpos, *d.qvel, *d.ctrl])
+            if odometry is not None and body >= 0:
+                mujoco.mj_forward(m, d)
+                mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, body, twist, 1)
+                w, x, y, z = d.xquat[body]
+                odometry.append([t, *d.xpos[body], x, y, z, w, *twist[3:], *twist[:3]])
         mujoco.mj_step(m, d)
     data = np.array(rows)
     data[:, 1 : 1 + m.nq] += rng.normal(0, q_noise, (len(data), m.nq))

@@ -134,7 +134,7 @@ def test_a_ball_joint_or_two_free_bodies_are_refused_in_words():
     one = mujoco.MjModel.from_xml_string(
         f"<mujoco><worldbody>{body.format('free')}</worldbody></mujoco>"
     )
-    assert params.joint_names(one) == [] and params.base_joint(one) == "joint 0"
+    assert params.joint_names(one) == [] and params.floating_base(one).joint == "joint 0"
 
 
 def test_an_unnamed_floating_base_starts_each_window_from_its_logged_state():

@@ -84,7 +84,7 @@ def rover(tmp_path_factory) -> Path:
     return out / "components" / "mira3d_rover" / "mira3d_rover.xml"
 
 
-def _rover_log(model: Path, dest: Path, m) -> Path:
+def _rover_log(model: Path, dest: Path, m, odometry: list | None = None) -> Path:
     """8 s of the arm's servos under a multi-sine about home, the wheels held still."""
     center = np.zeros(m.nu)
     amplitude = np.zeros(m.nu)
@@ -92,7 +92,9 @@ def _rover_log(model: Path, dest: Path, m) -> Path:
         if "wheel" not in m.actuator(a).name:
             center[a] = m.qpos0[m.jnt_qposadr[m.actuator_trnid[a, 0]]]
             amplitude[a] = 0.2
-    return arm.record(model, dest, seconds=8.0, amplitude=amplitude, center=center)
+    return arm.record(
+        model, dest, seconds=8.0, amplitude=amplitude, center=center, odometry=odometry
+    )
 
 
 def test_a_rover_on_its_floating_base_recovers_its_arms_damping(rover, tmp_path):
@@ -114,6 +116,95 @@ def test_a_rover_on_its_floating_base_recovers_its_arms_damping(rover, tmp_path)
     report = _calibrated(rover, log, fixed, tmp_path)
     found = {p["name"]: p["after"] for p in report["parameters"]}
     assert set(found) == {f"{j}.damping" for j in truth}
+    for j, value in truth.items():
+        assert found[f"{j}.damping"] == pytest.approx(value, rel=0.10), j
+    fitted = report["tracking"]["fitted"]
+    for j in ("ur_shoulder_lift_joint", "ur_elbow_joint"):
+        assert fitted["before"][j]["q_rms"] >= 5 * fitted["after"][j]["q_rms"], j
+
+
+def _rover_bag(csv: Path, odometry: list, dest: Path, frame: str) -> Path:
+    """The CSV's joints and commands as a ros2_control robot's bag (JointState and a
+    forward command controller's Float64MultiArray) and the base's state as a motion
+    capture system's ``nav_msgs/Odometry`` of ``frame`` (MuJoCo's own body pose and
+    body-frame twist, with the log's noise)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    ty = store.types
+    js, arr, odom = (
+        ty["sensor_msgs/msg/JointState"],
+        ty["std_msgs/msg/Float64MultiArray"],
+        ty["nav_msgs/msg/Odometry"],
+    )
+    header_t, time_t = ty["std_msgs/msg/Header"], ty["builtin_interfaces/msg/Time"]
+    vec, point, quat = ty["geometry_msgs/msg/Vector3"], ty["geometry_msgs/msg/Point"], ty[
+        "geometry_msgs/msg/Quaternion"
+    ]
+    pose_t, twist_t = ty["geometry_msgs/msg/Pose"], ty["geometry_msgs/msg/Twist"]
+    pose_cov, twist_cov = ty["geometry_msgs/msg/PoseWithCovariance"], ty[
+        "geometry_msgs/msg/TwistWithCovariance"
+    ]
+    header = csv.read_text().split("\n", 1)[0].split(",")
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    q_cols = [i for i, h in enumerate(header) if h.startswith("q.") and "_mount." not in h]
+    v_cols = [i for i, h in enumerate(header) if h.startswith("v.") and "_mount." not in h]
+    u_cols = [i for i, h in enumerate(header) if h.startswith("u.")]
+    names = [header[i][2:] for i in q_cols]
+    assert names == [header[i][2:] for i in v_cols]
+    rng = np.random.default_rng(7)
+    base = np.asarray(odometry)
+    base[:, 1:4] += rng.normal(0, 2e-4, (len(base), 3))
+    base[:, 8:14] += rng.normal(0, 5e-3, (len(base), 6))
+    layout = ty["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    with Writer(dest, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        states = w.add_connection("/joint_states", js.__msgtype__, typestore=store)
+        cmds = w.add_connection("/forward_command_controller/commands", arr.__msgtype__,
+                                typestore=store)  # fmt: skip
+        mocap = w.add_connection("/mocap/odom", odom.__msgtype__, typestore=store)
+        for row, b in zip(data, base, strict=True):
+            ns = int(round(row[0] * 1e9))
+            stamp = time_t(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+            msg = js(header=header_t(stamp=stamp, frame_id=""), name=names,
+                     position=row[q_cols], velocity=row[v_cols], effort=np.zeros(0))  # fmt: skip
+            w.write(states, ns, store.serialize_cdr(msg, js.__msgtype__))
+            u = arr(layout=layout, data=row[u_cols])
+            w.write(cmds, ns, store.serialize_cdr(u, arr.__msgtype__))
+            o = odom(
+                header=header_t(stamp=stamp, frame_id="odom"),
+                child_frame_id=frame,
+                pose=pose_cov(pose=pose_t(position=point(*b[1:4]), orientation=quat(*b[4:8])),
+                              covariance=np.zeros(36)),
+                twist=twist_cov(twist=twist_t(linear=vec(*b[8:11]), angular=vec(*b[11:14])),
+                                covariance=np.zeros(36)),
+            )  # fmt: skip
+            w.write(mocap, ns, store.serialize_cdr(o, odom.__msgtype__))
+    return dest
+
+
+def test_a_rovers_bag_gives_its_base_as_odometry(rover, tmp_path):
+    """The same rover's log as a bag: the base's state from a nav_msgs/Odometry topic
+    (pose in the world, twist in the base's frame, quaternion x, y, z, w), turned into the
+    free joint's state; the fit recovers the damping as the CSV's does."""
+    m = mujoco.MjModel.from_xml_path(str(rover))
+    [free] = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
+    body = m.body(int(m.jnt_bodyid[free])).name
+    truth, real = _tripled(rover, ROVER_PERTURBED, tmp_path / "real")
+    odometry: list = []
+    log = _rover_log(real, tmp_path / "log.csv", m, odometry)
+    spin = np.asarray(odometry)[:, 4:8]
+    assert np.degrees(2 * np.arccos(np.clip(np.abs(spin[:, 3]).min(), 0, 1))) > 5, (
+        "the base must turn for the twist's frame to matter"
+    )
+    bag = _rover_bag(log, odometry, tmp_path / "run", body)
+    fixed = [
+        m.joint(j).name
+        for j in range(m.njnt)
+        if m.jnt_type[j] != mujoco.mjtJoint.mjJNT_FREE and m.joint(j).name not in truth
+    ]
+    report = _calibrated(rover, bag, fixed, tmp_path)
+    found = {p["name"]: p["after"] for p in report["parameters"]}
     for j, value in truth.items():
         assert found[f"{j}.damping"] == pytest.approx(value, rel=0.10), j
     fitted = report["tracking"]["fitted"]

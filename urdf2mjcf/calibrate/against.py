@@ -78,9 +78,9 @@ def against(
     joints, actuators = params.joint_names(m), params.actuator_names(m)
     servos = params.position_servos(m)
     dt = float(m.opt.timestep)
-    floating = params.base_joint(m)
+    floating = params.floating_base(m)
     trajectories = [
-        logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
+        logs.resample(logs.read(p, actuators, servos, floating), joints, actuators, dt, floating)
         for p in log_paths
     ]
     replay = fit.Replay(params.Applier(m, []), trajectories, fit.FitConfig(window=window))

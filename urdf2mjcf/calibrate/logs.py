@@ -24,6 +24,7 @@ import numpy as np
 
 from .. import untrusted
 from ..errors import InputError
+from .params import BASE_Q, BASE_V, Base
 
 log = logging.getLogger(__name__)
 
@@ -171,8 +172,10 @@ def _columns(path: Path, header: list[str], data: np.ndarray, *, sparse: bool) -
             "%s: %d samples repeat a time; the first of each kept", path, int((~firsts).sum())
         )
     data, t = data[firsts], t[firsts]
-    step = float(np.median(np.diff(t)))
-    gaps = np.diff(t) > MAX_GAP * max(step, 1e-9)
+    apart = np.diff(t)
+    # a bag's messages on several topics share times: the step is between distinct times
+    step = float(np.median(apart[apart > 0])) if (apart > 0).any() else 0.0
+    gaps = apart > MAX_GAP * max(step, 1e-9)
     if gaps.any():
         at = float(t[:-1][gaps][0])
         log.warning(
@@ -198,20 +201,31 @@ def _columns(path: Path, header: list[str], data: np.ndarray, *, sparse: bool) -
 BAG_SUFFIXES = (".mcap", ".db3")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 COMMANDS = "std_msgs/msg/Float64MultiArray"
+ODOMETRY = "nav_msgs/msg/Odometry"
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 TRAJECTORY_RATE = 1000.0
 """Hz: a trajectory's setpoints are sampled this often between its points (linearly, as a
 joint trajectory controller interpolates them) before the log is resampled."""
 
 
-def read(path: Path, actuators: list[str], servos: Mapping[str, str] | None = None) -> Log:
+def read(
+    path: Path,
+    actuators: list[str],
+    servos: Mapping[str, str] | None = None,
+    base: Base | None = None,
+) -> Log:
     """A log: a ROS 2 bag (a folder, ``.mcap`` or ``.db3``) or else a CSV file."""
     if path.is_dir() or path.suffix.lower() in BAG_SUFFIXES:
-        return read_bag(path, actuators, servos or {})
+        return read_bag(path, actuators, servos or {}, base)
     return read_csv(path)
 
 
-def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None = None) -> Log:
+def read_bag(
+    path: Path,
+    actuators: list[str],
+    servos: Mapping[str, str] | None = None,
+    base: Base | None = None,
+) -> Log:
     """A rosbag2 (MCAP or SQLite): ``sensor_msgs/JointState`` messages give each joint's
     position and velocity at their header stamp (the bag's time where it is zero); the
     commands come from one ``std_msgs/Float64MultiArray`` topic (a ros2_control forward
@@ -219,8 +233,9 @@ def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None 
     none, from ``trajectory_msgs/JointTrajectory`` messages (a joint trajectory
     controller's: each point's positions at its ``time_from_start`` after the message's
     stamp, interpolated linearly, a later trajectory replacing the rest of an earlier one)
-    for the position servos ``servos`` names (joint -> actuator). Messages are sorted by
-    time."""
+    for the position servos ``servos`` names (joint -> actuator). A floating ``base``'s
+    state comes from one ``nav_msgs/Odometry`` topic (:func:`_odometry`). Messages are
+    sorted by time."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -236,10 +251,13 @@ def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None 
         states = [c for c in reader.connections if c.msgtype == JOINT_STATE]
         commands = [c for c in reader.connections if c.msgtype == COMMANDS]
         trajectories = [c for c in reader.connections if c.msgtype == TRAJECTORY]
+        odometry = _odometry_topic(path, reader, base)
         if not states:
             raise InputError(f"bag has no {JOINT_STATE} topic", file=path)
         if not commands and trajectories:
-            return _with_trajectories(path, reader, states, trajectories, servos or {})
+            return _with_trajectories(
+                path, reader, states + odometry, trajectories, servos or {}, base
+            )
         if len(commands) != 1:
             found = ", ".join(sorted(c.topic for c in commands)) or "none"
             raise InputError(
@@ -249,16 +267,14 @@ def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None 
             )
         index: dict[str, int] = {"t": 0}
         rows: list[dict[int, float]] = []
-        for conn, stamp, raw in reader.messages(connections=states + commands):
+        frames: set[str] = set()
+        for conn, stamp, raw in reader.messages(connections=states + odometry + commands):
             msg: Any = reader.deserialize(raw, conn.msgtype)
             row: dict[int, float] = {}
-            if conn.msgtype == JOINT_STATE:
+            if conn.msgtype in (JOINT_STATE, ODOMETRY):
                 head = msg.header.stamp
                 t_ns = head.sec * 1_000_000_000 + head.nanosec or stamp
-                for i, name in enumerate(msg.name):
-                    for kind, values in (("q", msg.position), ("v", msg.velocity)):
-                        if i < len(values):
-                            row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+                _state(path, conn.msgtype, conn.topic, msg, base, index, row, frames)
             else:
                 t_ns = stamp
                 if len(msg.data) != len(actuators):
@@ -273,6 +289,7 @@ def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None 
             rows.append(row)
     finally:
         reader.close()
+    _check_frames(path, frames, base)
     data = np.full((len(rows), len(index)), np.nan)
     for i, row in enumerate(rows):
         for j, value in row.items():
@@ -281,22 +298,26 @@ def read_bag(path: Path, actuators: list[str], servos: Mapping[str, str] | None 
 
 
 def _with_trajectories(
-    path: Path, reader: Any, states: list, trajectories: list, servos: Mapping[str, str]
+    path: Path,
+    reader: Any,
+    states: list,
+    trajectories: list,
+    servos: Mapping[str, str],
+    base: Base | None,
 ) -> Log:
-    """:func:`read_bag`'s log where the commands are joint trajectories."""
+    """:func:`read_bag`'s log where the commands are joint trajectories (``states``: the
+    JointState and Odometry topics)."""
     index: dict[str, int] = {"t": 0}
     rows: list[dict[int, float]] = []
+    frames: set[str] = set()
     plans: list[tuple[float, list[str], np.ndarray, np.ndarray]] = []
     for conn, stamp, raw in reader.messages(connections=states + trajectories):
         msg: Any = reader.deserialize(raw, conn.msgtype)
         head = msg.header.stamp
         t_ns = head.sec * 1_000_000_000 + head.nanosec or stamp
-        if conn.msgtype == JOINT_STATE:
+        if conn.msgtype in (JOINT_STATE, ODOMETRY):
             row: dict[int, float] = {0: t_ns * 1e-9}
-            for i, name in enumerate(msg.name):
-                for kind, values in (("q", msg.position), ("v", msg.velocity)):
-                    if i < len(values):
-                        row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+            _state(path, conn.msgtype, conn.topic, msg, base, index, row, frames)
             rows.append(row)
             continue
         unknown = [j for j in msg.joint_names if j not in servos]
@@ -319,6 +340,7 @@ def _with_trajectories(
                 file=path,
             )
         plans.append((t_ns * 1e-9, list(msg.joint_names), np.asarray(offsets), positions))
+    _check_frames(path, frames, base)
     plans.sort(key=lambda p: p[0])
     for k, (start, names, times, positions) in enumerate(plans):
         end = start + times[-1]
@@ -340,16 +362,102 @@ def _with_trajectories(
     return _columns(path, list(index), data, sparse=True)
 
 
+def _odometry_topic(path: Path, reader: Any, base: Base | None) -> list:
+    """The bag's one ``nav_msgs/Odometry`` connection for a floating ``base`` (none for a
+    fixed base, whose bag's odometry is not the model's to replay)."""
+    found = [c for c in reader.connections if c.msgtype == ODOMETRY]
+    if base is None or not found:
+        return []
+    if len({c.topic for c in found}) > 1:
+        raise InputError(
+            f"bag has {ODOMETRY} on {_names(sorted({c.topic for c in found}))}: the base's "
+            "state must come from one topic (record only the odometry of the base's own "
+            "pose, such as a motion-capture system's or the simulator's ground truth)",
+            file=path,
+        )
+    return found
+
+
+def _state(
+    path: Path,
+    msgtype: str,
+    topic: str,
+    msg: Any,
+    base: Base | None,
+    index: dict[str, int],
+    row: dict[int, float],
+    frames: set[str],
+) -> None:
+    """Fill ``row`` (column index -> value, ``index`` growing as columns appear) from one
+    JointState or Odometry message (whose ``child_frame_id`` joins ``frames``)."""
+    if msgtype == JOINT_STATE:
+        for i, name in enumerate(msg.name):
+            for kind, values in (("q", msg.position), ("v", msg.velocity)):
+                if i < len(values):
+                    row[index.setdefault(f"{kind}.{name}", len(index))] = float(values[i])
+        return
+    assert base is not None  # _odometry_topic reads none for a fixed base
+    frames.add(str(msg.child_frame_id))
+    pose, twist = _odometry(path, topic, msg, base)
+    for kind, names, values in (("q", BASE_Q, pose), ("v", BASE_V, twist)):
+        for name, value in zip(names, values, strict=True):
+            row[index.setdefault(f"{kind}.{base.joint}.{name}", len(index))] = float(value)
+
+
+def _check_frames(path: Path, frames: set[str], base: Base | None) -> None:
+    """Warn where the odometry is of another frame than the base's body (read as the
+    body's: a ``base_footprint`` under a ``base_link`` differs by an offset)."""
+    other = sorted(f for f in frames if f and base is not None and f != base.body)
+    if other and base is not None:
+        log.warning(
+            "%s: the odometry is of frame %s; the model's free joint moves body %r: read "
+            "as that body's pose and twist",
+            path,
+            _names(other),
+            untrusted.excerpt(base.body, 60),
+        )
+
+
+def _odometry(path: Path, topic: str, msg: Any, base: Base) -> tuple[np.ndarray, np.ndarray]:
+    """A ``nav_msgs/Odometry`` message as MuJoCo's free joint holds the base's state
+    (:data:`~.params.BASE_Q`, :data:`~.params.BASE_V`). The pose is the base frame's in
+    the world (the message's ``header.frame_id``, an ``odom`` or ``map`` frame with z up
+    as REP 105 has it, taken as the model's world); the twist is in the base's own frame
+    (``child_frame_id``, as the message defines it), so its linear part is turned into the
+    world as the free joint holds it, and the angular part is kept."""
+    pose, twist = msg.pose.pose, msg.twist.twist
+    quat = np.array(
+        [pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z]
+    )
+    norm = float(np.linalg.norm(quat))
+    if not math.isfinite(norm) or not 0.5 < norm < 1.5:
+        raise InputError(
+            f"{topic}: an Odometry orientation that is not a unit quaternion "
+            f"(|q| = {norm:.3g})",
+            file=path,
+        )
+    quat /= norm
+    linear = _rotate(quat, np.array([twist.linear.x, twist.linear.y, twist.linear.z]))
+    q = np.array([pose.position.x, pose.position.y, pose.position.z, *quat])
+    v = np.array([*linear, twist.angular.x, twist.angular.y, twist.angular.z])
+    return q, v
+
+
+def _rotate(quat: np.ndarray, vec: np.ndarray) -> np.ndarray:
+    """``vec`` turned by the unit quaternion ``quat`` (w, x, y, z)."""
+    w, u = quat[0], quat[1:]
+    return vec + 2.0 * w * np.cross(u, vec) + 2.0 * np.cross(u, np.cross(u, vec))
+
+
 def resample(
-    found: Log, joints: list[str], actuators: list[str], dt: float, base: str | None = None
+    found: Log, joints: list[str], actuators: list[str], dt: float, floating: Base | None = None
 ) -> Trajectory:
     """``found`` on a grid of step ``dt`` (the model's timestep), columns in the model's
     order; :class:`InputError` when it does not describe this model: a joint or actuator
     the log lacks, or no column of the model at all (a log of another robot). ``base``: the
     model's floating base, whose state the log must hold too (``q.<base>.x`` ..
     ``v.<base>.wz``, :data:`~.params.BASE_Q` and :data:`~.params.BASE_V`)."""
-    from .params import BASE_Q, BASE_V
-
+    base = floating.joint if floating else None
     path = found.path
     base_q = [f"{base}.{c}" for c in BASE_Q] if base else []
     base_v = [f"{base}.{c}" for c in BASE_V] if base else []
@@ -383,7 +491,7 @@ def resample(
             f"log lacks {_names(lacking)}: the model's base is free (joint "
             f"'{untrusted.excerpt(base or '', 60)}'), and its state (position, orientation "
             "and velocity, as q.<base>.x .. v.<base>.wz) must be logged to replay it; a "
-            "bag's JointState does not hold it: log it in a CSV (see docs/calibrate.md)",
+            "bag gives it as one nav_msgs/Odometry topic (see docs/calibrate.md)",
             file=path,
         )
     n = int(math.floor((found.end - found.start) / dt + 1e-9)) + 1

@@ -121,12 +121,27 @@ def base_joint_id(m: Any) -> int | None:
     return free[0] if free else None
 
 
-def base_joint(m: Any) -> str | None:
-    """The name of :func:`base_joint_id`'s joint (the log's columns are named by it)."""
+@dataclass(frozen=True)
+class Base:
+    """A model's floating base, as a log names it."""
+
+    joint: str
+    """The free joint's name (``joint N`` where it has none): the CSV's columns are
+    ``q.<joint>.x`` .. ``v.<joint>.wz``."""
+    body: str
+    """The body it moves: the frame a bag's ``nav_msgs/Odometry`` must be of."""
+
+
+def floating_base(m: Any) -> Base | None:
+    """The model's floating base (:func:`base_joint_id`), or None for a fixed base."""
     j = base_joint_id(m)
     if j is None:
         return None
-    return mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}"
+    body = int(m.jnt_bodyid[j])
+    return Base(
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint {j}",
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body) or f"body {body}",
+    )
 
 
 def actuator_names(m: Any) -> list[str]:

@@ -58,7 +58,7 @@ def calibrate(
 
     m = load_model(model_path)
     joints = params.joint_names(m)
-    floating = params.base_joint(m)
+    floating = params.floating_base(m)
     actuators = params.actuator_names(m)
     servos = params.position_servos(m)
     if not m.nu:
@@ -69,8 +69,13 @@ def calibrate(
     dt = float(m.opt.timestep)
     fitted: list[logs.Trajectory] = []
     held: list[logs.Trajectory] = []
+
+    def trajectory(p: Path) -> logs.Trajectory:
+        found = logs.read(p, actuators, servos, floating)
+        return logs.resample(found, joints, actuators, dt, floating)
+
     for p in log_paths:
-        tr = logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
+        tr = trajectory(p)
         if cfg.holdout:
             fitted.append(tr)
         else:
@@ -78,9 +83,7 @@ def calibrate(
             fitted.append(head)
             held.append(tail)
     for p in cfg.holdout:
-        held.append(
-            logs.resample(logs.read(p, actuators, servos), joints, actuators, dt, floating)
-        )
+        held.append(trajectory(p))
     short = [t.name for t in fitted + held if len(t.q) < 4]
     if short:
         raise InputError(f"too little data in {short[0]}: a log must span several model timesteps")
