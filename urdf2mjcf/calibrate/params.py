@@ -84,7 +84,7 @@ it): columns ``v.<base>.vx`` .. ``v.<base>.wz``."""
 
 def joint_ids(m: Any) -> list[int]:
     """The model's hinge and slide joints, in order: a floating base (one free joint) is
-    left out, its state logged apart (:func:`base_joint`); :class:`InputError` for a ball
+    left out, its state logged apart (:func:`floating_base`); :class:`InputError` for a ball
     joint (its state is not what a joint log holds)."""
     ids = []
     hinge_or_slide = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
