@@ -94,3 +94,12 @@ def test_the_servo_step_the_docs_give_is_mujoco_s():
     assert round(_one_step("implicitfast", 1000.0), 2) == 2.39
     assert round(_one_step("Euler", 975.0), 2) == 2.33
     assert round(_one_step("Euler", 1000.0), 2) == 2.39
+
+
+def test_the_warning_thresholds_are_the_code_s():
+    from urdf2mjcf.calibrate import report
+
+    text = " ".join(DOC.read_text().split())
+    assert report.WIDE == 0.25 and "an interval wider than a quarter of the value" in text
+    assert f"and than {report.FLOOR * 100:g} % of its bounds' span" in text
+    assert f"correlated beyond {report.CORRELATED:g}" in text

@@ -14,6 +14,9 @@ from .fit import FitResult, Tracking
 
 WIDE = 0.25
 """An interval wider than this fraction of its value (either side) is 'not identified'."""
+FLOOR = 0.002
+"""...unless the interval is also narrower than this fraction of the bounds' span: a value
+near zero (no friction) that the log pins down to a little is identified."""
 CORRELATED = 0.95
 """Estimates correlated beyond this cannot be told apart."""
 
@@ -70,7 +73,7 @@ def warnings(fit: FitResult) -> list[str]:
         if (
             not math.isfinite(half)
             or half > WIDE * max(abs(x), 1e-9)
-            and half > 0.01 * (p.hi - p.lo)
+            and half > FLOOR * (p.hi - p.lo)
         ):
             out.append(
                 f"{p.owner}: {_WORDS[p.field]} is not identified from these logs "
