@@ -103,3 +103,6 @@ def test_the_warning_thresholds_are_the_code_s():
     assert report.WIDE == 0.25 and "an interval wider than a quarter of the value" in text
     assert f"and than {report.FLOOR * 100:g} % of its bounds' span" in text
     assert f"correlated beyond {report.CORRELATED:g}" in text
+    from urdf2mjcf.calibrate import fit
+
+    assert f"at its force range in more than {fit.LIMITED * 100:g} % of the fitted" in text

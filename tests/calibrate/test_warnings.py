@@ -1,7 +1,8 @@
 """The report's warnings say what the logs do not determine, in words a user acts on: a log
 that barely moves the arm leaves its damping and armature named as not identified, a log
 that moves it well names none; a value near zero that the log pins down is no warning,
-while a small value with an interval wider than itself is one."""
+while a small value with an interval wider than itself is one; a servo the log drives into
+its force limit is named, with its share of the samples."""
 
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ def case(tmp_path_factory):
 
 def _warnings(nominal, real, tmp_path, amplitude: float, still=()) -> list[str]:
     log = arm.record(real, tmp_path / "log.csv", seconds=6.0, amplitude=amplitude, still=still)
+    _forces(nominal, log)
     res = run(
         "urdf2mjcf", "calibrate", str(nominal), str(log), "-o", "cal", "--free",
         "damping,armature", cwd=tmp_path,
@@ -42,11 +44,50 @@ def test_a_log_that_barely_moves_the_arm_names_what_it_cannot_tell(case, tmp_pat
     for owner, what in (("elbow", "damping"), ("shoulder", "armature"), ("elbow", "armature")):
         [line] = [w for w in said if w.startswith(f"joint '{owner}': {what} is not identified")]
         assert "record a log that moves it more, or fix it (--params: false)" in line
+    assert not [w for w in said if "force is at its limit" in w]
 
 
 def test_a_log_that_moves_the_arm_well_names_nothing_as_not_identified(case, tmp_path):
     nominal, real = case
     assert [w for w in _warnings(nominal, real, tmp_path, 0.5) if "not identified" in w] == []
+
+
+def _forces(nominal, log) -> None:
+    """Keep, beside the log, each servo's share of the fitted samples (the first 80 %) at
+    its force limit, computed from the log with numpy: kp (u - q) - kv v against the
+    servo's force range, the gains and ranges read from the MJCF with lxml."""
+    from lxml import etree
+
+    header = log.read_text().split("\n", 1)[0].split(",")
+    data = np.loadtxt(log, delimiter=",", skiprows=1)
+    data = data[: len(data) - round(0.2 * len(data))]
+    col = {h: data[:, i] for i, h in enumerate(header)}
+    shares = {}
+    for el in etree.parse(str(nominal)).iter("position"):
+        name, j = el.get("name"), el.get("joint")
+        kp, kv = float(el.get("kp")), float(el.get("kv"))
+        limit = min(abs(float(x)) for x in el.get("forcerange").split())
+        force = kp * (col[f"u.{name}"] - col[f"q.{j}"]) - kv * col[f"v.{j}"]
+        shares[name] = float(np.mean(np.abs(force) >= limit))
+    (log.parent / "shares.json").write_text(json.dumps(shares))
+
+
+def test_a_log_that_drives_a_servo_into_its_force_limit_says_so(case, tmp_path):
+    """The fit's local minima come from a servo at its force limit (docs/calibrate.md):
+    the warning names each servo there and its share of the samples, as numpy computes
+    that share from the log."""
+    nominal, real = case
+    said = _warnings(nominal, real, tmp_path, 0.5)
+    shares = json.loads((tmp_path / "shares.json").read_text())
+    assert shares["shoulder"] > 0.001
+    for name, share in shares.items():
+        named = [w for w in said if w.startswith(f"actuator '{name}': its force is at its limit")]
+        if share <= 0.001:
+            assert named == []
+            continue
+        [line] = named
+        assert f"in {100 * share:.1f} % of the fitted samples" in line
+        assert "record a log within the servos' force ranges" in line
 
 
 def _fit(values: list[tuple[str, float, float, float]]) -> FitResult:

@@ -34,6 +34,10 @@ START_INSIDE = 0.01
 """A start on a bound is moved this fraction of the span inside."""
 """Seconds of residual treated as one correlated block for the intervals."""
 
+LIMITED = 0.001
+"""A servo at its force limit in more than this fraction of the samples is warned of."""
+MAX_CHECKED = 5000
+"""Samples checked for force limits at most (evenly spread)."""
 Z95 = 1.959964
 """Two-sided 95 % quantile of the normal distribution."""
 
@@ -183,6 +187,37 @@ class Replay:
             np.sqrt((ev**2).mean(axis=0)),
             ev.max(axis=0),
         )
+
+
+def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float]:
+    """Actuator name -> the fraction of the trajectories' samples at which its force, as
+    model ``m`` computes it from the logged state and command, is at its force limit; only
+    those above :data:`LIMITED`. There the replay's residual jumps (a clamped servo drops
+    out of an implicit integrator's damping) and the fit can stop in a local minimum."""
+    limited = np.asarray(m.actuator_forcelimited, dtype=bool)
+    rows = [(tr, k) for tr in trajectories for k in range(len(tr.q))]
+    if not limited.any() or not rows:
+        return {}
+    rows = rows[:: max(1, len(rows) // MAX_CHECKED)]
+    ids = joint_ids(m)
+    qadr, vadr = m.jnt_qposadr[ids], m.jnt_dofadr[ids]
+    b = base_joint_id(m)
+    limit = np.abs(m.actuator_forcerange).min(axis=1) * (1 - 1e-9)
+    d = mujoco.MjData(m)
+    hits = np.zeros(m.nu)
+    for tr, k in rows:
+        d.qpos[:], d.qvel[:] = m.qpos0, 0.0
+        d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = tr.q[k], tr.v[k], tr.u[k]
+        if b is not None and tr.base_q is not None and tr.base_v is not None:
+            qa, va = int(m.jnt_qposadr[b]), int(m.jnt_dofadr[b])
+            d.qpos[qa : qa + 7], d.qvel[va : va + 6] = tr.base_q[k], tr.base_v[k]
+        mujoco.mj_forward(m, d)
+        hits += limited & (np.abs(d.actuator_force) >= limit)
+    out = {}
+    for a in np.flatnonzero(hits / len(rows) > LIMITED):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(a)) or f"actuator {a}"
+        out[name] = float(hits[a] / len(rows))
+    return out
 
 
 def _delayed(series: np.ndarray, delays: Sequence[float], dt: float) -> np.ndarray:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -56,6 +56,9 @@ class Summary:
     samples: int
     """Time steps fitted."""
     held_name: str
+    force_limited: Mapping[str, float] = field(default_factory=dict)
+    """Actuator -> the fraction of the fitted samples at which its force is at its limit
+    (:func:`.fit.force_limited`)."""
 
 
 def rounded(x: float) -> float:
@@ -63,10 +66,17 @@ def rounded(x: float) -> float:
     return float(f"{x:.6g}")
 
 
-def warnings(fit: FitResult) -> list[str]:
+def warnings(fit: FitResult, force_limited: Mapping[str, float] | None = None) -> list[str]:
     """Each parameter the logs do not determine, or determine only together with another,
-    as a sentence that says what to record instead."""
-    out = []
+    and each servo the logs drive into its force limit, as a sentence that says what to
+    record instead."""
+    out = [
+        f"actuator '{name}': its force is at its limit in {100 * share:.1f} % of the fitted "
+        "samples, where the replay jumps and the fit can stop in a local minimum (see "
+        "docs/calibrate.md): record a log within the servos' force ranges (urdf2mjcf "
+        "excite keeps under 90 %)"
+        for name, share in sorted((force_limited or {}).items())
+    ]
     ps = fit.params
     for i, p in enumerate(ps):
         half, x = float(fit.interval[i]), float(fit.x[i])
@@ -159,7 +169,7 @@ def as_json(s: Summary) -> dict[str, Any]:
         },
         "held_out_improvement": improvement(s.before_held, s.after_held),
         "held_out": s.held_name,
-        "warnings": warnings(fit),
+        "warnings": warnings(fit, s.force_limited),
         # no wall-clock time here: the same inputs give the same bytes (the command prints it)
         "cost": {
             "rollouts": fit.evaluations,

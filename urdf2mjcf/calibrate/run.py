@@ -107,8 +107,9 @@ def calibrate(
         replay.samples,
         ", ".join(str(p) for p in cfg.holdout)
         or f"the last {cfg.holdout_fraction:.0%} of each log",
+        fitting.force_limited(applier.model(result.x), fitted),
     )
-    for w in report.warnings(result):
+    for w in report.warnings(result, summary.force_limited):
         log.warning("%s", w)
     calibration = _calibration(result)
     robot = _robot_xml(model_path, out, calibration)
