@@ -51,6 +51,9 @@ def _command(*args: str) -> list[str]:
     return [
         sys.executable,
         "-c",
+        # Ctrl-C as a terminal's shell gives it: a suite started in the background has SIGINT
+        # ignored, and Python keeps an inherited ignored SIGINT ignored
+        "import signal; signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         "from urdf2mjcf.cli import urdf2mjcf_main; urdf2mjcf_main()",
         *args,
     ]
@@ -478,6 +481,9 @@ def test_sigterm_or_ctrl_c_ends_the_server_within_2_s_and_the_node_leaves_the_gr
         assert left == []
     finally:
         watcher.close()
+        if s.proc.poll() is None:  # failed: no server left running for the rest of the suite
+            s.proc.kill()
+            s.proc.wait(10)
 
 
 def test_velocity_and_effort_groups_drive_their_actuators(tmp_path):
