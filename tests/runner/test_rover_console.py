@@ -362,6 +362,29 @@ def test_the_page_drives_the_rover_and_stops_it(console, tmp_path):
     assert (tmp_path / "console.png").stat().st_size > 10_000
 
 
+def test_a_drag_of_the_slider_leaves_the_last_value_commanded(console):
+    """A drag sends a command per step; sent together, they wait on the simulation's lock
+    and the last to get it wins, often a stale speed. The page sends them one by one."""
+    steps = [round(0.1 * k, 1) for k in range(1, 41)]
+    with browser.page(1280, 900) as page:
+        page.goto(console.url)
+        page.wait_for_function("() => document.querySelectorAll('#arm input').length == 6")
+        answered: list[str] = []
+        page.on("requestfinished", lambda r: "/command" in r.url and answered.append(r.url))
+        with console.sim.lock:  # the simulation busy: commands sent together would queue
+            page.evaluate(
+                f"""() => {{ const s = document.getElementById("right");
+                       for (const v of {steps}) {{ s.value = v; s.dispatchEvent(new Event("input")); }} }}"""
+            )
+            page.wait_for_timeout(500)
+        deadline = time.monotonic() + TIMEOUT
+        while len(answered) < len(steps):
+            assert time.monotonic() < deadline, f"{len(answered)} of {len(steps)} answered"
+            page.wait_for_timeout(50)
+        seen = state(console)["rovers"]["collector"]["targets"]["wheels"]["right"]
+    assert seen == steps[-1]
+
+
 def _command(*args: str) -> list[str]:
     code = "from urdf2mjcf.cli import rover_drive_main; rover_drive_main()"
     return [sys.executable, "-c", code, *args]

@@ -96,8 +96,10 @@ function pose(row, p) {
     .forEach((text, k) => { $(row).cells[k + 1].textContent = text; });
 }
 
-function command(body) {
-  api("POST", "/command", Object.assign({ rover }, body))
+let sent = Promise.resolve();
+function command(body) {  // one at a time: two in flight could land out of order
+  const to = rover;
+  sent = sent.then(() => api("POST", "/command", Object.assign({ rover: to }, body)))
     .then((r) => say(r.clipped.length ? "clipped: " + r.clipped.join(", ") : "ok"))
     .catch((e) => say(e.message, true));
 }
