@@ -387,7 +387,9 @@ class Applier:
             else:
                 i = -1
             self._index.append(i)
-        self.inertial = any(p.field in ("mass", "payload") for p in self.params)
+        # armature, masses and a payload change the constants MuJoCo derives at compile time
+        # from the inertia at qpos0 (dof_invweight0 sets how soft friction and limits are)
+        self.inertial = any(p.field in ("armature", "mass", "payload") for p in self.params)
 
     def model(self, x: np.ndarray) -> Any:
         """A copy of the model with the parameters at ``x``."""
