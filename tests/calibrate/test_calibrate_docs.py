@@ -106,3 +106,12 @@ def test_the_warning_thresholds_are_the_code_s():
     from urdf2mjcf.calibrate import fit
 
     assert f"at its force range in more than {fit.LIMITED * 100:g} % of the fitted" in text
+
+
+def test_the_cut_at_a_force_limit_the_docs_give_is_the_code_s():
+    from urdf2mjcf.calibrate import fit
+
+    text = " ".join(DOC.read_text().split())
+    assert f"within {fit.NEAR_LIMIT * 100:g} % of its range's half-span of a limit" in text
+    assert f"windows shorter than {fit.MIN_WINDOW} steps are left out" in text
+    assert f"at most {'twice' if fit.PADDED == 2 else fit.PADDED} the steps fitted" in text

@@ -34,6 +34,15 @@ START_INSIDE = 0.01
 """A start on a bound is moved this fraction of the span inside."""
 """Seconds of residual treated as one correlated block for the intervals."""
 
+NEAR_LIMIT = 0.05
+"""A step whose servo force (unclamped, from the logged state and command) is within this
+fraction of its force range's half-span of a limit ends the fit's window; the next starts
+after it. There a clamped servo drops out of an implicit integrator's damping, and the
+replay's result jumps with the parameters."""
+MIN_WINDOW = 10
+"""Steps a window between two such steps must span to be fitted."""
+PADDED = 2.0
+"""Steps rolled out, padding included, per step fitted, at most, in windows so cut."""
 LIMITED = 0.001
 """A servo at its force limit in more than this fraction of the samples is warned of."""
 MAX_CHECKED = 5000
@@ -89,12 +98,22 @@ class _Windows:
     q: np.ndarray
     """(w, n, nj) measured positions after each step."""
     v: np.ndarray
+    keep: np.ndarray
+    """(w, n) whether each step is fitted (a window cut short is padded)."""
 
 
 class Replay:
     """The windows of some trajectories, ready to be replayed by any parameter set."""
 
-    def __init__(self, applier: Applier, trajectories: Sequence[Trajectory], cfg: FitConfig):
+    def __init__(
+        self,
+        applier: Applier,
+        trajectories: Sequence[Trajectory],
+        cfg: FitConfig,
+        spans: list[tuple[int, int, int]] | None = None,
+    ):
+        """``spans``: (trajectory, first step, steps) of each window (see :meth:`cut`);
+        none: each trajectory tiled into equal windows."""
         self.applier = applier
         m = applier.base
         self.dt = float(m.opt.timestep)
@@ -103,35 +122,38 @@ class Replay:
         self.vadr = np.array(m.jnt_dofadr[ids], dtype=int)
         # a floating base: each window starts from its logged state too
         b = base_joint_id(m)
-        base_q = None if b is None else slice(int(m.jnt_qposadr[b]), int(m.jnt_qposadr[b]) + 7)
-        base_v = None if b is None else slice(int(m.jnt_dofadr[b]), int(m.jnt_dofadr[b]) + 6)
+        qa, va = (0, 0) if b is None else (int(m.jnt_qposadr[b]), int(m.jnt_dofadr[b]))
+        self._base_q = None if b is None else slice(qa, qa + 7)
+        self._base_v = None if b is None else slice(va, va + 6)
         self.nq, self.nv = m.nq, m.nv
+        self.trajectories = list(trajectories)
+        self.cfg = cfg
         steps = max(2, int(round(cfg.window / self.dt)))
-        # one length for every window (they are replayed in one batch), at most ``steps``,
-        # that tiles each trajectory's len - 1 steps with little left over
-        length = min(
-            (len(t.q) - 1) // math.ceil((len(t.q) - 1) / steps) for t in trajectories
-        )
-        starts, ctrl, q, v = [], [], [], []
+        if spans is None:
+            # one length for every window (they are replayed in one batch), at most
+            # ``steps``, that tiles each trajectory's len - 1 steps with little left over
+            length = min((len(t.q) - 1) // math.ceil((len(t.q) - 1) / steps) for t in trajectories)
+            spans = [
+                (i, k, length)
+                for i, tr in enumerate(trajectories)
+                for k in range(0, len(tr.q) - length, length)  # k + length <= len - 1
+            ]
+        else:
+            length = max(n for _, _, n in spans)
         data = mujoco.MjData(m)
-        size = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-        for tr in trajectories:
-            for k in range(0, len(tr.q) - length, length):  # k + length <= len - 1
-                mujoco.mj_resetData(m, data)
-                data.qpos[self.qadr] = tr.q[k]
-                data.qvel[self.vadr] = tr.v[k]
-                if base_q is not None and base_v is not None:
-                    if tr.base_q is None or tr.base_v is None:
-                        raise ValueError(f"{tr.name}: no state of the floating base")
-                    data.qpos[base_q] = tr.base_q[k]
-                    data.qvel[base_v] = tr.base_v[k]
-                state = np.empty(size)
-                mujoco.mj_getState(m, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-                starts.append(state)
-                ctrl.append(tr.u[k : k + length])
-                q.append(tr.q[k + 1 : k + length + 1])
-                v.append(tr.v[k + 1 : k + length + 1])
-        self.windows = _Windows(np.array(starts), np.array(ctrl), np.array(q), np.array(v))
+        starts, ctrl, q, v, keep = [], [], [], [], []
+        for i, k, n in spans:
+            tr = self.trajectories[i]
+            starts.append(self._start(m, data, tr, k))
+            # a window cut short is padded with its last row, and not fitted there
+            rows = np.minimum(np.arange(k, k + length), k + n - 1)
+            ctrl.append(tr.u[rows])
+            q.append(tr.q[rows + 1])
+            v.append(tr.v[rows + 1])
+            keep.append(np.arange(length) < n)
+        self.windows = _Windows(
+            np.array(starts), np.array(ctrl), np.array(q), np.array(v), np.array(keep)
+        )
         self.length = length
         nthread = cfg.threads or len(os.sched_getaffinity(0))
         self.nthread = max(1, min(nthread, 16))
@@ -140,9 +162,40 @@ class Replay:
         self.v_scale = np.ones(len(self.vadr))
         self.evaluations = 0
 
+    def _start(self, m: Any, data: Any, tr: Trajectory, k: int) -> np.ndarray:
+        """The full-physics state of ``tr``'s sample ``k``."""
+        mujoco.mj_resetData(m, data)
+        data.qpos[self.qadr] = tr.q[k]
+        data.qvel[self.vadr] = tr.v[k]
+        if self._base_q is not None and self._base_v is not None:
+            if tr.base_q is None or tr.base_v is None:
+                raise ValueError(f"{tr.name}: no state of the floating base")
+            data.qpos[self._base_q] = tr.base_q[k]
+            data.qvel[self._base_v] = tr.base_v[k]
+        state = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+        mujoco.mj_getState(m, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        return state
+
+    def cut(self, m: Any) -> Replay:
+        """These trajectories in windows that end where ``m``'s servo forces near their
+        limits (itself where none does, or where a sensor delay is fitted)."""
+        if not np.asarray(m.actuator_forcelimited, dtype=bool).any():
+            return self
+        if any(p.field == "delay" for p in self.applier.params):
+            # each window starts from a state measured late, which the delay's replay
+            # takes as it is: the more windows, the more that start pulls the delay to 0
+            return self
+        steps = max(2, int(round(self.cfg.window / self.dt)))
+        spans = _cut(m, self.trajectories, steps)
+        if spans is None:
+            return self
+        out = Replay(self.applier, self.trajectories, self.cfg, spans)
+        out.q_scale, out.v_scale = self.q_scale, self.v_scale
+        return out
+
     @property
     def samples(self) -> int:
-        return int(self.windows.q.shape[0] * self.windows.q.shape[1])
+        return int(self.windows.keep.sum())
 
     def simulate(self, xs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Predicted measurements for each parameter vector: (len(xs), w, n, nj) positions
@@ -173,20 +226,82 @@ class Replay:
     def residuals(self, xs: Sequence[np.ndarray]) -> np.ndarray:
         """(len(xs), N) scaled residuals."""
         q, v = self.simulate(xs)
-        rq = (q - self.windows.q[None]) / self.q_scale
-        rv = (v - self.windows.v[None]) / self.v_scale
+        keep = self.windows.keep[None, :, :, None]
+        rq = (q - self.windows.q[None]) / self.q_scale * keep
+        rv = (v - self.windows.v[None]) / self.v_scale * keep
         return np.concatenate([rq.reshape(len(xs), -1), rv.reshape(len(xs), -1)], axis=1)
 
     def tracking(self, x: np.ndarray) -> Tracking:
         q, v = self.simulate([x])
-        eq = np.abs(q[0] - self.windows.q).reshape(-1, len(self.qadr))
-        ev = np.abs(v[0] - self.windows.v).reshape(-1, len(self.vadr))
+        keep = self.windows.keep
+        eq = np.abs(q[0] - self.windows.q)[keep]
+        ev = np.abs(v[0] - self.windows.v)[keep]
         return Tracking(
             np.sqrt((eq**2).mean(axis=0)),
             eq.max(axis=0),
             np.sqrt((ev**2).mean(axis=0)),
             ev.max(axis=0),
         )
+
+
+def _cut(
+    m: Any, trajectories: Sequence[Trajectory], steps: int
+) -> list[tuple[int, int, int]] | None:
+    """(trajectory, first step, steps) of each window between the steps at which a servo
+    of ``m`` nears a force limit, at most ``steps`` long; None where no step does."""
+    limited = np.flatnonzero(np.asarray(m.actuator_forcelimited, dtype=bool))
+    lo, hi = m.actuator_forcerange[limited, 0], m.actuator_forcerange[limited, 1]
+    band = NEAR_LIMIT * (hi - lo) / 2
+    free = m.__copy__()
+    free.actuator_forcelimited[:] = 0  # the force the servo asks for, before its clamp
+    d = mujoco.MjData(free)
+    ids = joint_ids(m)
+    qadr, vadr = m.jnt_qposadr[ids], m.jnt_dofadr[ids]
+    near = []
+    for tr in trajectories:
+        flags = np.zeros(len(tr.q) - 1, dtype=bool)
+        for k in range(len(tr.q) - 1):
+            d.qpos[:], d.qvel[:] = free.qpos0, 0.0
+            d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = tr.q[k], tr.v[k], tr.u[k]
+            mujoco.mj_fwdPosition(free, d)
+            mujoco.mj_fwdVelocity(free, d)
+            mujoco.mj_fwdActuation(free, d)
+            f = d.actuator_force[limited]
+            flags[k] = bool((np.minimum(np.abs(f - lo), np.abs(f - hi)) < band).any())
+        near.append(flags)
+    if not any(f.any() for f in near):
+        return None
+    segments = []  # (trajectory, first step, steps) of each run of steps away from a limit
+    for i, flags in enumerate(near):
+        k = 0
+        while k < len(flags):
+            if flags[k]:
+                k += 1
+                continue
+            end = k
+            while end < len(flags) and not flags[end]:
+                end += 1
+            if end - k >= MIN_WINDOW:
+                segments.append((i, k, end - k))
+            k = end
+    if not segments:
+        return None  # every step near a limit: nothing is left to cut to
+    # one window length for the batch, the shorter segments padded to it and the longer
+    # ones split into near-equal parts (each at least MIN_WINDOW long: a length split is at
+    # least twice that): the longest that rolls out at most PADDED times the steps fitted
+    # (a longer window fits better; a shorter one wastes less)
+    longest = min(max(n for _, _, n in segments), steps)
+    lengths = sorted({min(n, steps) for _, _, n in segments if n >= 2 * MIN_WINDOW} | {longest})
+    kept = sum(n for _, _, n in segments)
+    cost = [sum(math.ceil(n / L) * L for _, _, n in segments) for L in lengths]
+    fits = [L for L, c in zip(lengths, cost, strict=True) if c <= PADDED * kept]
+    length = max(fits) if fits else lengths[int(np.argmin(cost))]
+    spans = []
+    for i, k, n in segments:
+        parts = math.ceil(n / length)
+        edges = [k + (n * j) // parts for j in range(parts + 1)]
+        spans += [(i, a, b - a) for a, b in zip(edges, edges[1:], strict=False)]
+    return spans
 
 
 def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float]:
@@ -250,28 +365,33 @@ def fit(
     # steps there see only one side of the cost
     x0 = np.clip(x0, lo + START_INSIDE * span, hi - START_INSIDE * span)
 
+    work = replay  # the windows fitted now (see Replay.cut)
+
     # the solver works on z = (x - lo) / (hi - lo) in [0, 1]: one scale for every kind
     def jac_z(z: np.ndarray) -> np.ndarray:
         step = np.where(z + FD_STEP > 1.0, -FD_STEP, FD_STEP)  # step inward at an upper bound
         xs = [lo + z * span] + [
             lo + (z + np.eye(len(z))[i] * step[i]) * span for i in range(len(z))
         ]
-        r = replay.residuals(xs)
+        r = work.residuals(xs)
         return ((r[1:] - r[0]) / step[:, None]).T
 
     def fun_z(z: np.ndarray) -> np.ndarray:
-        return replay.residuals([lo + z * span])[0]
+        return work.residuals([lo + z * span])[0]
 
     def jac_of(x: np.ndarray) -> np.ndarray:
         return jac_z((x - lo) / span) / span
 
     # first with each signal scaled by its spread, then by the noise the fit leaves
-    q_all = replay.windows.q.reshape(-1, len(replay.qadr))
-    v_all = replay.windows.v.reshape(-1, len(replay.vadr))
-    replay.q_scale = np.maximum(q_all.std(axis=0), 1e-6)
-    replay.v_scale = np.maximum(v_all.std(axis=0), 1e-6)
+    keep = replay.windows.keep
+    replay.q_scale = np.maximum(replay.windows.q[keep].std(axis=0), 1e-6)
+    replay.v_scale = np.maximum(replay.windows.v[keep].std(axis=0), 1e-6)
     x = x0
+    used = []
     for _stage in range(2):
+        # windows cut where a servo nears its force limit, as the model at x has them
+        work = replay.cut(replay.applier.model(x))
+        used.append(work)
         if len(params):
             sol = least_squares(
                 fun_z,
@@ -285,17 +405,20 @@ def fit(
                 gtol=1e-10,
             )
             x = lo + sol.x * span
-        r = replay.residuals([x])[0]
-        nj = len(replay.qadr)
-        per = r.reshape(2, -1, nj)
-        replay.q_scale = replay.q_scale * np.maximum(np.sqrt((per[0] ** 2).mean(axis=0)), 1e-9)
-        replay.v_scale = replay.v_scale * np.maximum(np.sqrt((per[1] ** 2).mean(axis=0)), 1e-9)
-    interval, corr = _intervals(replay, x, jac_of, len(params))
+        r = work.residuals([x])[0]
+        nj = len(work.qadr)
+        kept = work.windows.keep.reshape(-1)
+        per = r.reshape(2, -1, nj)[:, kept]
+        work.q_scale = work.q_scale * np.maximum(np.sqrt((per[0] ** 2).mean(axis=0)), 1e-9)
+        work.v_scale = work.v_scale * np.maximum(np.sqrt((per[1] ** 2).mean(axis=0)), 1e-9)
+        replay.q_scale, replay.v_scale = work.q_scale, work.v_scale
+    interval, corr = _intervals(work, x, jac_of, len(params))
     at_bound = [
         bool(x[i] - lo[i] < 1e-6 * span[i] or hi[i] - x[i] < 1e-6 * span[i])
         for i in range(len(params))
     ]
-    return FitResult(list(params), x, interval, corr, at_bound, replay.evaluations)
+    evaluations = sum(w.evaluations for w in {id(w): w for w in used + [replay]}.values())
+    return FitResult(list(params), x, interval, corr, at_bound, evaluations)
 
 
 def _intervals(replay: Replay, x: np.ndarray, jac_of: Any, p: int) -> tuple[np.ndarray, np.ndarray]:
@@ -303,7 +426,7 @@ def _intervals(replay: Replay, x: np.ndarray, jac_of: Any, p: int) -> tuple[np.n
         return np.zeros(0), np.zeros((0, 0))
     r = replay.residuals([x])[0]
     jac = jac_of(x)
-    dof = max(len(r) - p, 1)
+    dof = max(2 * replay.samples * len(replay.qadr) - p, 1)  # the fitted residuals
     s2 = float(r @ r) / dof
     jtj = jac.T @ jac
     scale = np.sqrt(np.maximum(np.diag(jtj), 1e-300))
