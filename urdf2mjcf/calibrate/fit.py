@@ -178,12 +178,8 @@ class Replay:
 
     def cut(self, m: Any) -> Replay:
         """These trajectories in windows that end where ``m``'s servo forces near their
-        limits (itself where none does, or where a sensor delay is fitted)."""
+        limits (itself where none does)."""
         if not np.asarray(m.actuator_forcelimited, dtype=bool).any():
-            return self
-        if any(p.field == "delay" for p in self.applier.params):
-            # each window starts from a state measured late, which the delay's replay
-            # takes as it is: the more windows, the more that start pulls the delay to 0
             return self
         steps = max(2, int(round(self.cfg.window / self.dt)))
         spans = _cut(m, self.trajectories, steps)
@@ -204,23 +200,36 @@ class Replay:
         nw = len(win.start)
         models = [self.applier.model(x) for x in xs]
         batch = [mm for mm in models for _ in range(nw)]
-        init = np.tile(win.start, (len(xs), 1))
+        delays = [self.applier.delay(x) for x in xs]
+        qa, va = 1 + self.qadr, 1 + self.nq + self.vadr
+        # the measured rows of each window, row 0 its start: (w, n + 1, nj)
+        mq = np.concatenate([win.start[:, None, qa], win.q], axis=1)
+        mv = np.concatenate([win.start[:, None, va], win.v], axis=1)
+        init = np.tile(win.start, (len(xs), 1)).reshape(len(xs), nw, -1)
+        for s, delay in enumerate(delays):
+            if delay:  # what was true at the window's start is measured delay seconds on
+                init[s][:, qa] = _at(mq, delay / self.dt)
+                init[s][:, va] = _at(mv, delay / self.dt)
         ctrl = np.tile(win.ctrl, (len(xs), 1, 1))
         with mj_rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0) as r:
             # every replay from a zero warm start: else a thread's last solution seeds the
             # next replay's constraint solver, and the residual is not a function of x alone
             warm = np.zeros((len(batch), self.nv))
-            state, _ = r.rollout(batch, self.datas, init, ctrl, initial_warmstart=warm)
+            state, _ = r.rollout(
+                batch, self.datas, init.reshape(len(batch), -1), ctrl, initial_warmstart=warm
+            )
         self.evaluations += len(xs)
         state = state.reshape(len(xs), nw, self.length, -1)
-        q = state[..., 1 + self.qadr]
-        v = state[..., 1 + self.nq + self.vadr]
-        delays = [self.applier.delay(x) for x in xs]
-        if any(delays):
-            q0 = np.tile(win.start[None, :, None, 1 + self.qadr], (len(xs), 1, 1, 1))
-            v0 = np.tile(win.start[None, :, None, 1 + self.nq + self.vadr], (len(xs), 1, 1, 1))
-            q = _delayed(np.concatenate([q0, q], axis=2), delays, self.dt)
-            v = _delayed(np.concatenate([v0, v], axis=2), delays, self.dt)
+        q = state[..., qa]
+        v = state[..., va]
+        for s, delay in enumerate(delays):
+            if delay:
+                q[s] = _delayed(
+                    np.concatenate([init[s][:, None, qa], q[s]], axis=1), mq, delay / self.dt
+                )
+                v[s] = _delayed(
+                    np.concatenate([init[s][:, None, va], v[s]], axis=1), mv, delay / self.dt
+                )
         return q, v
 
     def residuals(self, xs: Sequence[np.ndarray]) -> np.ndarray:
@@ -335,17 +344,30 @@ def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float
     return out
 
 
-def _delayed(series: np.ndarray, delays: Sequence[float], dt: float) -> np.ndarray:
-    """``series`` (sets, w, n + 1, nj), row 0 the initial state, read ``delay`` seconds
-    late: rows 1.. at times ``k dt - delay``, linearly interpolated (clamped at row 0)."""
-    n = series.shape[2] - 1
-    out = np.empty_like(series[:, :, 1:])
-    for s, delay in enumerate(delays):
-        pos = np.clip(np.arange(1, n + 1) - delay / dt, 0.0, n)
-        lo = np.floor(pos).astype(int)
-        hi = np.minimum(lo + 1, n)
-        f = (pos - lo)[None, :, None]
-        out[s] = series[s][:, lo] * (1 - f) + series[s][:, hi] * f
+def _at(rows: np.ndarray, pos: float) -> np.ndarray:
+    """(w, nj): ``rows`` (w, n + 1, nj) read at row ``pos``, linearly interpolated."""
+    n = rows.shape[1] - 1
+    pos = min(max(pos, 0.0), float(n))
+    lo = min(int(math.floor(pos)), n)
+    hi = min(lo + 1, n)
+    f = pos - lo
+    return rows[:, lo] * (1 - f) + rows[:, hi] * f
+
+
+def _delayed(sim: np.ndarray, measured: np.ndarray, shift: float) -> np.ndarray:
+    """(w, n, nj): what is measured at rows 1 .. n of windows whose state ``sim`` (w, n + 1,
+    nj; row 0 the state at the start) is measured ``shift`` rows late: the simulation at
+    row ``i - shift``, interpolated; a row measured before the replay's start is taken as
+    measured (it is no prediction: its residual is zero)."""
+    n = sim.shape[1] - 1
+    pos = np.arange(1, n + 1) - shift
+    inside = pos >= 0.0
+    p = np.clip(pos, 0.0, n)
+    lo = np.minimum(np.floor(p).astype(int), n)
+    hi = np.minimum(lo + 1, n)
+    f = (p - lo)[None, :, None]
+    out = sim[:, lo] * (1 - f) + sim[:, hi] * f
+    out[:, ~inside] = measured[:, 1:][:, ~inside]
     return out
 
 
