@@ -7,6 +7,7 @@ before the cut recover every value within 10 %."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -97,3 +98,30 @@ def test_seeds_that_stopped_in_a_local_minimum_recover_every_value(case, tmp_pat
     for p in report["parameters"]:
         truth = _truth_of(p["name"], TRUTH, KP)
         assert abs(p["after"] - truth) <= 0.1 * truth, (p["name"], p["after"], truth)
+
+
+def test_a_late_log_is_cut_where_the_servos_were_near_their_limits(case, tmp_path):
+    """A log whose positions and velocities are 3 samples late is cut, read with that
+    delay, at the steps where the on-time log is (the first 3 steps aside: the late log
+    holds no state of them)."""
+    nominal, real = case
+    log = arm.record(real, tmp_path / "log.csv", amplitude=0.5, seed=2)
+    replay, m = _replay(nominal, log)
+    tr = replay.trajectories[0]
+    late = 3
+    shifted = dataclasses.replace(
+        tr,
+        q=np.vstack([np.repeat(tr.q[:1], late, 0), tr.q[:-late]]),
+        v=np.vstack([np.repeat(tr.v[:1], late, 0), tr.v[:-late]]),
+    )
+    steps = 1000
+    on_time = fit._cut(m, [tr], steps)
+    read_late = fit._cut(m, [shifted], steps, float(late))
+    unread = fit._cut(m, [shifted], steps)
+    assert on_time is not None and read_late is not None and unread is not None
+
+    def starts(spans: list[tuple[int, int, int]]) -> set[int]:
+        return {k for _, k, _ in spans if late < k < len(tr.q) - 2 * late}
+
+    assert starts(read_late) == starts(on_time)
+    assert starts(unread) != starts(on_time)

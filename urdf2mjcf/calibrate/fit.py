@@ -176,13 +176,13 @@ class Replay:
         mujoco.mj_getState(m, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         return state
 
-    def cut(self, m: Any) -> Replay:
+    def cut(self, m: Any, delay: float = 0.0) -> Replay:
         """These trajectories in windows that end where ``m``'s servo forces near their
-        limits (itself where none does)."""
+        limits (itself where none does), the logs read ``delay`` seconds late."""
         if not np.asarray(m.actuator_forcelimited, dtype=bool).any():
             return self
         steps = max(2, int(round(self.cfg.window / self.dt)))
-        spans = _cut(m, self.trajectories, steps)
+        spans = _cut(m, self.trajectories, steps, delay / self.dt)
         if spans is None:
             return self
         out = Replay(self.applier, self.trajectories, self.cfg, spans)
@@ -254,10 +254,11 @@ class Replay:
 
 
 def _cut(
-    m: Any, trajectories: Sequence[Trajectory], steps: int
+    m: Any, trajectories: Sequence[Trajectory], steps: int, shift: float = 0.0
 ) -> list[tuple[int, int, int]] | None:
     """(trajectory, first step, steps) of each window between the steps at which a servo
-    of ``m`` nears a force limit, at most ``steps`` long; None where no step does."""
+    of ``m`` nears a force limit, at most ``steps`` long; None where no step does. The
+    state at step k is the one measured ``shift`` steps later (a sensor's delay)."""
     limited = np.flatnonzero(np.asarray(m.actuator_forcelimited, dtype=bool))
     lo, hi = m.actuator_forcerange[limited, 0], m.actuator_forcerange[limited, 1]
     band = NEAR_LIMIT * (hi - lo) / 2
@@ -268,10 +269,17 @@ def _cut(
     qadr, vadr = m.jnt_qposadr[ids], m.jnt_dofadr[ids]
     near = []
     for tr in trajectories:
-        flags = np.zeros(len(tr.q) - 1, dtype=bool)
-        for k in range(len(tr.q) - 1):
+        n = len(tr.q) - 1
+        flags = np.zeros(n, dtype=bool)
+        rows = np.clip(np.arange(n) + shift, 0.0, float(n))
+        lo_row = np.minimum(np.floor(rows).astype(int), n)
+        hi_row = np.minimum(lo_row + 1, n)
+        w = (rows - lo_row)[:, None]
+        q = tr.q[lo_row] * (1 - w) + tr.q[hi_row] * w
+        v = tr.v[lo_row] * (1 - w) + tr.v[hi_row] * w
+        for k in range(n):
             d.qpos[:], d.qvel[:] = free.qpos0, 0.0
-            d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = tr.q[k], tr.v[k], tr.u[k]
+            d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = q[k], v[k], tr.u[k]
             mujoco.mj_fwdPosition(free, d)
             mujoco.mj_fwdVelocity(free, d)
             mujoco.mj_fwdActuation(free, d)
@@ -412,7 +420,7 @@ def fit(
     used = []
     for _stage in range(2):
         # windows cut where a servo nears its force limit, as the model at x has them
-        work = replay.cut(replay.applier.model(x))
+        work = replay.cut(replay.applier.model(x), replay.applier.delay(x))
         used.append(work)
         if len(params):
             sol = least_squares(
