@@ -128,7 +128,9 @@ class Replay:
         self.nq, self.nv = m.nq, m.nv
         self.trajectories = list(trajectories)
         self.cfg = cfg
-        steps = max(2, int(round(cfg.window / self.dt)))
+        self.steps = max(2, int(round(cfg.window / self.dt)))
+        """Steps of a window at most."""
+        steps = self.steps
         if spans is None:
             # one length for every window (they are replayed in one batch), at most
             # ``steps``, that tiles each trajectory's len - 1 steps with little left over
@@ -181,8 +183,7 @@ class Replay:
         limits (itself where none does), the logs read ``delay`` seconds late."""
         if not np.asarray(m.actuator_forcelimited, dtype=bool).any():
             return self
-        steps = max(2, int(round(self.cfg.window / self.dt)))
-        spans = _cut(m, self.trajectories, steps, delay / self.dt)
+        spans = _cut(m, self.trajectories, self.steps, delay / self.dt)
         if spans is None:
             return self
         out = Replay(self.applier, self.trajectories, self.cfg, spans)
@@ -202,14 +203,15 @@ class Replay:
         batch = [mm for mm in models for _ in range(nw)]
         delays = [self.applier.delay(x) for x in xs]
         qa, va = 1 + self.qadr, 1 + self.nq + self.vadr
-        # the measured rows of each window, row 0 its start: (w, n + 1, nj)
-        mq = np.concatenate([win.start[:, None, qa], win.q], axis=1)
-        mv = np.concatenate([win.start[:, None, va], win.v], axis=1)
         init = np.tile(win.start, (len(xs), 1)).reshape(len(xs), nw, -1)
+        if any(delays):
+            # the measured rows of each window, row 0 its start: (w, n + 1, nj)
+            mq = np.concatenate([win.start[:, None, qa], win.q], axis=1)
+            mv = np.concatenate([win.start[:, None, va], win.v], axis=1)
         for s, delay in enumerate(delays):
             if delay:  # what was true at the window's start is measured delay seconds on
-                init[s][:, qa] = _at(mq, delay / self.dt)
-                init[s][:, va] = _at(mv, delay / self.dt)
+                init[s][:, qa] = _interpolated(mq, delay / self.dt, axis=1)
+                init[s][:, va] = _interpolated(mv, delay / self.dt, axis=1)
         ctrl = np.tile(win.ctrl, (len(xs), 1, 1))
         with mj_rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0) as r:
             # every replay from a zero warm start: else a thread's last solution seeds the
@@ -271,19 +273,10 @@ def _cut(
     for tr in trajectories:
         n = len(tr.q) - 1
         flags = np.zeros(n, dtype=bool)
-        rows = np.clip(np.arange(n) + shift, 0.0, float(n))
-        lo_row = np.minimum(np.floor(rows).astype(int), n)
-        hi_row = np.minimum(lo_row + 1, n)
-        w = (rows - lo_row)[:, None]
-        q = tr.q[lo_row] * (1 - w) + tr.q[hi_row] * w
-        v = tr.v[lo_row] * (1 - w) + tr.v[hi_row] * w
+        q = _interpolated(tr.q, np.arange(n) + shift)
+        v = _interpolated(tr.v, np.arange(n) + shift)
         for k in range(n):
-            d.qpos[:], d.qvel[:] = free.qpos0, 0.0
-            d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = q[k], v[k], tr.u[k]
-            mujoco.mj_fwdPosition(free, d)
-            mujoco.mj_fwdVelocity(free, d)
-            mujoco.mj_fwdActuation(free, d)
-            f = d.actuator_force[limited]
+            f = _actuator_force(free, d, qadr, vadr, q[k], v[k], tr.u[k])[limited]
             flags[k] = bool((np.minimum(np.abs(f - lo), np.abs(f - hi)) < band).any())
         near.append(flags)
     if not any(f.any() for f in near):
@@ -321,6 +314,30 @@ def _cut(
     return spans
 
 
+def _actuator_force(
+    m: Any,
+    d: Any,
+    qadr: np.ndarray,
+    vadr: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    u: np.ndarray,
+    base: tuple[int, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """``m``'s actuator forces at a logged state (the joints', and a floating base's
+    ``(joint, qpos, qvel)``; the rest at ``qpos0`` and rest) and command."""
+    d.qpos[:], d.qvel[:] = m.qpos0, 0.0
+    d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = q, v, u
+    if base is not None:
+        b, bq, bv = base
+        qa, va = int(m.jnt_qposadr[b]), int(m.jnt_dofadr[b])
+        d.qpos[qa : qa + 7], d.qvel[va : va + 6] = bq, bv
+    mujoco.mj_fwdPosition(m, d)
+    mujoco.mj_fwdVelocity(m, d)
+    mujoco.mj_fwdActuation(m, d)
+    return d.actuator_force
+
+
 def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float]:
     """Actuator name -> the fraction of the trajectories' samples at which its force, as
     model ``m`` computes it from the logged state and command, is at its force limit; only
@@ -338,13 +355,11 @@ def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float
     d = mujoco.MjData(m)
     hits = np.zeros(m.nu)
     for tr, k in rows:
-        d.qpos[:], d.qvel[:] = m.qpos0, 0.0
-        d.qpos[qadr], d.qvel[vadr], d.ctrl[:] = tr.q[k], tr.v[k], tr.u[k]
+        base = None
         if b is not None and tr.base_q is not None and tr.base_v is not None:
-            qa, va = int(m.jnt_qposadr[b]), int(m.jnt_dofadr[b])
-            d.qpos[qa : qa + 7], d.qvel[va : va + 6] = tr.base_q[k], tr.base_v[k]
-        mujoco.mj_forward(m, d)
-        hits += limited & (np.abs(d.actuator_force) >= limit)
+            base = (b, tr.base_q[k], tr.base_v[k])
+        force = _actuator_force(m, d, qadr, vadr, tr.q[k], tr.v[k], tr.u[k], base)
+        hits += limited & (np.abs(force) >= limit)
     out = {}
     for a in np.flatnonzero(hits / len(rows) > LIMITED):
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(a)) or f"actuator {a}"
@@ -352,14 +367,15 @@ def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float
     return out
 
 
-def _at(rows: np.ndarray, pos: float) -> np.ndarray:
-    """(w, nj): ``rows`` (w, n + 1, nj) read at row ``pos``, linearly interpolated."""
-    n = rows.shape[1] - 1
-    pos = min(max(pos, 0.0), float(n))
-    lo = min(int(math.floor(pos)), n)
-    hi = min(lo + 1, n)
-    f = pos - lo
-    return rows[:, lo] * (1 - f) + rows[:, hi] * f
+def _interpolated(rows: np.ndarray, pos: Any, axis: int = 0) -> np.ndarray:
+    """``rows`` read at the (fractional) row or rows ``pos`` along ``axis``, linearly
+    interpolated, clamped to the first and last row."""
+    n = rows.shape[axis] - 1
+    p = np.clip(np.asarray(pos, dtype=float), 0.0, float(n))
+    lo = np.minimum(np.floor(p).astype(int), n)
+    hi = np.minimum(lo + 1, n)
+    f = np.expand_dims(p - lo, tuple(range(1, rows.ndim - axis))) if p.ndim else p - lo
+    return np.take(rows, lo, axis) * (1 - f) + np.take(rows, hi, axis) * f
 
 
 def _delayed(sim: np.ndarray, measured: np.ndarray, shift: float) -> np.ndarray:
@@ -367,14 +383,9 @@ def _delayed(sim: np.ndarray, measured: np.ndarray, shift: float) -> np.ndarray:
     nj; row 0 the state at the start) is measured ``shift`` rows late: the simulation at
     row ``i - shift``, interpolated; a row measured before the replay's start is taken as
     measured (it is no prediction: its residual is zero)."""
-    n = sim.shape[1] - 1
-    pos = np.arange(1, n + 1) - shift
+    pos = np.arange(1, sim.shape[1]) - shift
     inside = pos >= 0.0
-    p = np.clip(pos, 0.0, n)
-    lo = np.minimum(np.floor(p).astype(int), n)
-    hi = np.minimum(lo + 1, n)
-    f = (p - lo)[None, :, None]
-    out = sim[:, lo] * (1 - f) + sim[:, hi] * f
+    out = _interpolated(sim, pos, axis=1)
     out[:, ~inside] = measured[:, 1:][:, ~inside]
     return out
 
@@ -447,7 +458,7 @@ def fit(
         bool(x[i] - lo[i] < 1e-6 * span[i] or hi[i] - x[i] < 1e-6 * span[i])
         for i in range(len(params))
     ]
-    evaluations = sum(w.evaluations for w in {id(w): w for w in used + [replay]}.values())
+    evaluations = replay.evaluations + sum(w.evaluations for w in used if w is not replay)
     return FitResult(list(params), x, interval, corr, at_bound, evaluations)
 
 
