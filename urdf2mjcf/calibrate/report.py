@@ -72,9 +72,10 @@ def warnings(fit: FitResult, force_limited: Mapping[str, float] | None = None) -
     record instead."""
     out = [
         f"actuator '{name}': its force is at its limit in {100 * share:.1f} % of the fitted "
-        "samples, which the fit leaves out with the steps near the limit (the replay jumps "
-        "there; see docs/calibrate.md): record a log within the servos' force ranges "
-        "(urdf2mjcf excite keeps under 90 %)"
+        "samples; the fit leaves out the steps where it nears the limit (the replay jumps "
+        "there; see docs/calibrate.md), and a servo held at its limit tells little of its "
+        "gains: record a log within the servos' force ranges (urdf2mjcf excite keeps under "
+        "90 %)"
         for name, share in sorted((force_limited or {}).items())
     ]
     ps = fit.params
