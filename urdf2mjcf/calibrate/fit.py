@@ -39,6 +39,10 @@ NEAR_LIMIT = 0.05
 fraction of its force range's half-span of a limit ends the fit's window; the next starts
 after it. There a clamped servo drops out of an implicit integrator's damping, and the
 replay's result jumps with the parameters."""
+STAGES = 5
+"""Fits in turn at most: the first with each signal weighed by its spread, the next by the
+noise the last left, each on the windows cut as the last stage's values have them, until
+that cut no longer changes."""
 MIN_WINDOW = 10
 """Steps a window between two such steps must span to be fitted."""
 PADDED = 2.0
@@ -142,6 +146,7 @@ class Replay:
             ]
         else:
             length = max(n for _, _, n in spans)
+        self.spans = list(spans)
         data = mujoco.MjData(m)
         starts, ctrl, q, v, keep = [], [], [], [], []
         for i, k, n in spans:
@@ -428,10 +433,13 @@ def fit(
     replay.q_scale = np.maximum(replay.windows.q[keep].std(axis=0), 1e-6)
     replay.v_scale = np.maximum(replay.windows.v[keep].std(axis=0), 1e-6)
     x = x0
-    used = []
-    for _stage in range(2):
+    used: list[Replay] = []
+    for stage in range(STAGES):
         # windows cut where a servo nears its force limit, as the model at x has them
         work = replay.cut(replay.applier.model(x), replay.applier.delay(x))
+        if stage >= 2 and work.spans == used[-1].spans:
+            work = used[-1]
+            break  # the cut the last stage fitted on is the fit's own: settled
         used.append(work)
         if len(params):
             sol = least_squares(
