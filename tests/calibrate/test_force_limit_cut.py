@@ -102,8 +102,8 @@ def test_seeds_that_stopped_in_a_local_minimum_recover_every_value(case, tmp_pat
 
 def test_a_late_log_is_cut_where_the_servos_were_near_their_limits(case, tmp_path):
     """A log whose positions and velocities are 3 samples late is cut, read with that
-    delay, at the steps where the on-time log is (the first 3 steps aside: the late log
-    holds no state of them)."""
+    delay, at the steps where the on-time log is, 3 rows on (its row k + 3 holds the
+    on-time row k, replayed under the command of row k), and not so read without it."""
     nominal, real = case
     log = arm.record(real, tmp_path / "log.csv", amplitude=0.5, seed=2)
     replay, m = _replay(nominal, log)
@@ -116,12 +116,15 @@ def test_a_late_log_is_cut_where_the_servos_were_near_their_limits(case, tmp_pat
     )
     steps = 1000
     on_time = fit._cut(m, [tr], steps)
-    read_late = fit._cut(m, [shifted], steps, float(late))
+    read_late = fit._cut(m, [shifted], steps, float(late), late)
     unread = fit._cut(m, [shifted], steps)
     assert on_time is not None and read_late is not None and unread is not None
 
-    def starts(spans: list[tuple[int, int, int]]) -> set[int]:
-        return {k for _, k, _ in spans if late < k < len(tr.q) - 2 * late}
+    def rows(spans: list[tuple[int, int, int]], by: int = 0) -> set[int]:
+        """The rows the windows fit (the first and last few aside)."""
+        inside = range(4 * late, len(tr.q) - 4 * late)
+        return {r + by for _, k, n in spans for r in range(k, k + n) if r + by in inside}
 
-    assert starts(read_late) == starts(on_time)
-    assert starts(unread) != starts(on_time)
+    assert rows(read_late) == rows(on_time, late)
+    assert len(read_late) > 10 and len(rows(read_late)) < len(tr.q) - 8 * late - 10
+    assert rows(unread) != rows(on_time, late)

@@ -36,9 +36,10 @@ START_INSIDE = 0.01
 
 NEAR_LIMIT = 0.05
 """A step whose servo force (unclamped, from the logged state and command) is within this
-fraction of its force range's half-span of a limit ends the fit's window; the next starts
-after it. There a clamped servo drops out of an implicit integrator's damping, and the
-replay's result jumps with the parameters."""
+fraction of its force range's half-span of a limit (or, with a delay off the log's rows,
+crosses a limit before the next step) ends the fit's window; the next starts after it.
+There a clamped servo drops out of an implicit integrator's damping, and the replay's
+result jumps with the parameters."""
 STAGES = 5
 """Fits in turn at most: the first with each signal weighed by its spread, the next by the
 noise the last left, each on the windows cut as the last stage's values have them, until
@@ -98,7 +99,9 @@ class _Windows:
     start: np.ndarray
     """(w, nstate) initial full-physics states."""
     ctrl: np.ndarray
-    """(w, n, nu)."""
+    """(w, history + n, nu): the commands of the ``history`` rows before each window's
+    start (where a delayed sensor's replay reads them, :meth:`Replay.simulate`), then of its
+    steps."""
     q: np.ndarray
     """(w, n, nj) measured positions after each step."""
     v: np.ndarray
@@ -134,18 +137,27 @@ class Replay:
         self.cfg = cfg
         self.steps = max(2, int(round(cfg.window / self.dt)))
         """Steps of a window at most."""
-        steps = self.steps
+        self.history = history(applier)
+        """Rows of commands before a window's start that its replay may read (a delay's
+        upper bound): no window starts before this row of its trajectory."""
+        steps, h = self.steps, self.history
         if spans is None:
             # one length for every window (they are replayed in one batch), at most
-            # ``steps``, that tiles each trajectory's len - 1 steps with little left over
-            length = min((len(t.q) - 1) // math.ceil((len(t.q) - 1) / steps) for t in trajectories)
+            # ``steps``, that tiles each trajectory's len - 1 - h steps with little left over
+            length = min(
+                (len(t.q) - 1 - h) // math.ceil((len(t.q) - 1 - h) / steps) for t in trajectories
+            )
             spans = [
                 (i, k, length)
                 for i, tr in enumerate(trajectories)
-                for k in range(0, len(tr.q) - length, length)  # k + length <= len - 1
+                for k in range(h, len(tr.q) - length, length)  # k + length <= len - 1
             ]
         else:
             length = max(n for _, _, n in spans)
+        # a window starts from a sampled state, not one interpolated between samples: an
+        # interpolated state is on no trajectory, and its error is replayed all window long
+        spans = [(i, *_sampled_start(self.trajectories[i], k, n)) for i, k, n in spans]
+        length = max(n for _, _, n in spans)
         self.spans = list(spans)
         data = mujoco.MjData(m)
         starts, ctrl, q, v, keep = [], [], [], [], []
@@ -154,10 +166,12 @@ class Replay:
             starts.append(self._start(m, data, tr, k))
             # a window cut short is padded with its last row, and not fitted there
             rows = np.minimum(np.arange(k, k + length), k + n - 1)
-            ctrl.append(tr.u[rows])
+            ctrl.append(tr.u[np.concatenate([np.arange(k - h, k), rows])])
             q.append(tr.q[rows + 1])
             v.append(tr.v[rows + 1])
-            keep.append(np.arange(length) < n)
+            # a row interpolated between samples is no measurement: not fitted
+            sampled = np.ones(length, bool) if tr.sampled is None else tr.sampled[rows + 1]
+            keep.append((np.arange(length) < n) & sampled)
         self.windows = _Windows(
             np.array(starts), np.array(ctrl), np.array(q), np.array(v), np.array(keep)
         )
@@ -188,7 +202,7 @@ class Replay:
         limits (itself where none does), the logs read ``delay`` seconds late."""
         if not np.asarray(m.actuator_forcelimited, dtype=bool).any():
             return self
-        spans = _cut(m, self.trajectories, self.steps, delay / self.dt)
+        spans = _cut(m, self.trajectories, self.steps, delay / self.dt, self.history)
         if spans is None:
             return self
         out = Replay(self.applier, self.trajectories, self.cfg, spans)
@@ -201,43 +215,35 @@ class Replay:
 
     def simulate(self, xs: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Predicted measurements for each parameter vector: (len(xs), w, n, nj) positions
-        and velocities, the sensor delay applied."""
+        and velocities, the sensor delay applied.
+
+        A sensor ``delay`` late shows at row k what was true at row k - delay / dt. So each
+        window is replayed on that later grid: from the state measured at its start, each
+        step under the command in force then, which for a command held between rows is
+        the commands either side weighed by how long each held (linear interpolation).
+        No state is interpolated; a log made by interpolating a simulation's states is
+        replayed exactly where the dynamics are linear."""
         win = self.windows
         nw = len(win.start)
         models = [self.applier.model(x) for x in xs]
         batch = [mm for mm in models for _ in range(nw)]
-        delays = [self.applier.delay(x) for x in xs]
         qa, va = 1 + self.qadr, 1 + self.nq + self.vadr
-        init = np.tile(win.start, (len(xs), 1)).reshape(len(xs), nw, -1)
-        if any(delays):
-            # the measured rows of each window, row 0 its start: (w, n + 1, nj)
-            mq = np.concatenate([win.start[:, None, qa], win.q], axis=1)
-            mv = np.concatenate([win.start[:, None, va], win.v], axis=1)
-        for s, delay in enumerate(delays):
-            if delay:  # what was true at the window's start is measured delay seconds on
-                init[s][:, qa] = _interpolated(mq, delay / self.dt, axis=1)
-                init[s][:, va] = _interpolated(mv, delay / self.dt, axis=1)
-        ctrl = np.tile(win.ctrl, (len(xs), 1, 1))
+        init = np.tile(win.start, (len(xs), 1))
+        steps = self.history + np.arange(self.length)
+        ctrl = np.concatenate(
+            [
+                _interpolated(win.ctrl, steps - self.applier.delay(x) / self.dt, axis=1)
+                for x in xs
+            ]
+        )
         with mj_rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0) as r:
             # every replay from a zero warm start: else a thread's last solution seeds the
             # next replay's constraint solver, and the residual is not a function of x alone
             warm = np.zeros((len(batch), self.nv))
-            state, _ = r.rollout(
-                batch, self.datas, init.reshape(len(batch), -1), ctrl, initial_warmstart=warm
-            )
+            state, _ = r.rollout(batch, self.datas, init, ctrl, initial_warmstart=warm)
         self.evaluations += len(xs)
         state = state.reshape(len(xs), nw, self.length, -1)
-        q = state[..., qa]
-        v = state[..., va]
-        for s, delay in enumerate(delays):
-            if delay:
-                q[s] = _delayed(
-                    np.concatenate([init[s][:, None, qa], q[s]], axis=1), mq, delay / self.dt
-                )
-                v[s] = _delayed(
-                    np.concatenate([init[s][:, None, va], v[s]], axis=1), mv, delay / self.dt
-                )
-        return q, v
+        return state[..., qa], state[..., va]
 
     def residuals(self, xs: Sequence[np.ndarray]) -> np.ndarray:
         """(len(xs), N) scaled residuals."""
@@ -260,12 +266,30 @@ class Replay:
         )
 
 
+def _sampled_start(tr: Trajectory, k: int, n: int) -> tuple[int, int]:
+    """The span ``(k, n)`` of ``tr`` from its first sampled row on (see
+    :attr:`Trajectory.sampled`), unchanged where that leaves under :data:`MIN_WINDOW`
+    steps."""
+    if tr.sampled is None or tr.sampled[k]:
+        return k, n
+    later = np.flatnonzero(tr.sampled[k : k + n - MIN_WINDOW + 1])
+    return (k, n) if not len(later) else (k + int(later[0]), n - int(later[0]))
+
+
+def history(applier: Applier) -> int:
+    """Rows of commands before a window's start that a replay with the applier's largest
+    delay reads (0 where the delay is not free)."""
+    hi = max((p.hi for p in applier.params if p.field == "delay"), default=0.0)
+    return int(math.ceil(hi / float(applier.base.opt.timestep) - 1e-9))
+
+
 def _cut(
-    m: Any, trajectories: Sequence[Trajectory], steps: int, shift: float = 0.0
+    m: Any, trajectories: Sequence[Trajectory], steps: int, shift: float = 0.0, first: int = 0
 ) -> list[tuple[int, int, int]] | None:
     """(trajectory, first step, steps) of each window between the steps at which a servo
-    of ``m`` nears a force limit, at most ``steps`` long; None where no step does. The
-    state at step k is the one measured ``shift`` steps later (a sensor's delay)."""
+    of ``m`` nears a force limit, at most ``steps`` long, none starting before row
+    ``first``; None where no step does. The command of step k is the one in force
+    ``shift`` steps earlier (a sensor's delay: see :meth:`Replay.simulate`)."""
     limited = np.flatnonzero(np.asarray(m.actuator_forcelimited, dtype=bool))
     lo, hi = m.actuator_forcerange[limited, 0], m.actuator_forcerange[limited, 1]
     band = NEAR_LIMIT * (hi - lo) / 2
@@ -277,14 +301,25 @@ def _cut(
     near = []
     for tr in trajectories:
         n = len(tr.q) - 1
-        flags = np.zeros(n, dtype=bool)
-        q = _interpolated(tr.q, np.arange(n) + shift)
-        v = _interpolated(tr.v, np.arange(n) + shift)
-        for k in range(n):
-            f = _actuator_force(free, d, qadr, vadr, q[k], v[k], tr.u[k])[limited]
-            flags[k] = bool((np.minimum(np.abs(f - lo), np.abs(f - hi)) < band).any())
+        u = _interpolated(tr.u, np.arange(n) - shift)
+        f = np.array(
+            [
+                _actuator_force(free, d, qadr, vadr, tr.q[k], tr.v[k], u[k])[limited]
+                for k in range(first, n)
+            ]
+        ).reshape(n - first, len(limited))
+        close = np.minimum(np.abs(f - lo), np.abs(f - hi)) < band
+        if abs(shift - round(shift)) > 1e-9:
+            # a delay off the rows: each step's command is a blend of two (Replay.simulate),
+            # which replays wrong a step where the force jumps across a limit, near it or not
+            across = np.diff(np.sign(f - lo), axis=0) != 0
+            across |= np.diff(np.sign(f - hi), axis=0) != 0
+            close[:-1] |= across
+            close[1:] |= across
+        flags = np.ones(n, dtype=bool)  # before the commands a replay reads: not fitted
+        flags[first:] = close.any(axis=1)
         near.append(flags)
-    if not any(f.any() for f in near):
+    if not any(f[first:].any() for f in near):
         return None
     segments = []  # (trajectory, first step, steps) of each run of steps away from a limit
     for i, flags in enumerate(near):
@@ -343,9 +378,12 @@ def _actuator_force(
     return d.actuator_force
 
 
-def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float]:
+def force_limited(
+    m: Any, trajectories: Sequence[Trajectory], delay: float = 0.0
+) -> dict[str, float]:
     """Actuator name -> the fraction of the trajectories' samples at which its force, as
-    model ``m`` computes it from the logged state and command, is at its force limit; only
+    model ``m`` computes it from the logged state and the command in force then (the logs
+    ``delay`` seconds late), is at its force limit; only
     those above :data:`LIMITED`. There the replay's residual jumps (a clamped servo drops
     out of an implicit integrator's damping) and the fit can stop in a local minimum."""
     limited = np.asarray(m.actuator_forcelimited, dtype=bool)
@@ -359,11 +397,13 @@ def force_limited(m: Any, trajectories: Sequence[Trajectory]) -> dict[str, float
     limit = np.abs(m.actuator_forcerange).min(axis=1) * (1 - 1e-9)
     d = mujoco.MjData(m)
     hits = np.zeros(m.nu)
+    shift = delay / float(m.opt.timestep)
     for tr, k in rows:
         base = None
         if b is not None and tr.base_q is not None and tr.base_v is not None:
             base = (b, tr.base_q[k], tr.base_v[k])
-        force = _actuator_force(m, d, qadr, vadr, tr.q[k], tr.v[k], tr.u[k], base)
+        u = _interpolated(tr.u, k - shift)
+        force = _actuator_force(m, d, qadr, vadr, tr.q[k], tr.v[k], u, base)
         hits += limited & (np.abs(force) >= limit)
     out = {}
     for a in np.flatnonzero(hits / len(rows) > LIMITED):
@@ -381,18 +421,6 @@ def _interpolated(rows: np.ndarray, pos: Any, axis: int = 0) -> np.ndarray:
     hi = np.minimum(lo + 1, n)
     f = np.expand_dims(p - lo, tuple(range(1, rows.ndim - axis))) if p.ndim else p - lo
     return np.take(rows, lo, axis) * (1 - f) + np.take(rows, hi, axis) * f
-
-
-def _delayed(sim: np.ndarray, measured: np.ndarray, shift: float) -> np.ndarray:
-    """(w, n, nj): what is measured at rows 1 .. n of windows whose state ``sim`` (w, n + 1,
-    nj; row 0 the state at the start) is measured ``shift`` rows late: the simulation at
-    row ``i - shift``, interpolated; a row measured before the replay's start is taken as
-    measured (it is no prediction: its residual is zero)."""
-    pos = np.arange(1, sim.shape[1]) - shift
-    inside = pos >= 0.0
-    out = _interpolated(sim, pos, axis=1)
-    out[:, ~inside] = measured[:, 1:][:, ~inside]
-    return out
 
 
 def fit(
@@ -436,7 +464,7 @@ def fit(
     used: list[Replay] = []
     for stage in range(STAGES):
         # windows cut where a servo nears its force limit, as the model at x has them
-        work = replay.cut(replay.applier.model(x), replay.applier.delay(x))
+        work = replay.cut(replay.applier.model(x), replay.applier.delay(x)) if stage else replay
         if stage >= 2 and work.spans == used[-1].spans:
             work = used[-1]
             break  # the cut the last stage fitted on is the fit's own: settled

@@ -69,13 +69,17 @@ class Trajectory:
     None for a fixed base."""
     base_v: np.ndarray | None = None
     """(n, 6) its measured velocity (``params.BASE_V``)."""
+    sampled: np.ndarray | None = None
+    """(n,) whether each row's state is a sample of every signal (within a quarter step), not
+    interpolated between samples (a log slower than the model, a gap, a NaN); None: all."""
 
     def rows(self, name: str, part: slice) -> Trajectory:
         """The rows ``part`` of this trajectory, named ``name``."""
         base_q = None if self.base_q is None else self.base_q[part]
         base_v = None if self.base_v is None else self.base_v[part]
+        sampled = None if self.sampled is None else self.sampled[part]
         return Trajectory(
-            name, self.dt, self.q[part], self.v[part], self.u[part], base_q, base_v
+            name, self.dt, self.q[part], self.v[part], self.u[part], base_q, base_v, sampled
         )
 
     def split(self, fraction: float) -> tuple[Trajectory, Trajectory]:
@@ -498,6 +502,12 @@ def resample(
     if n < 3:
         raise InputError(f"log is shorter than three model timesteps ({dt:g} s)", file=path)
     grid = found.start + dt * np.arange(n)
+    sampled = _sampled(
+        grid,
+        [found.q[c][0] for c in [*joints, *base_q]]
+        + [found.v[c][0] for c in [*joints, *base_v] if c in found.v],
+        dt,
+    )
     q = np.column_stack([np.interp(grid, *found.q[j]) for j in joints])
     vs = []
     for j, name in enumerate(joints):
@@ -512,7 +522,7 @@ def resample(
         else np.zeros((n, 0))
     )
     if not base:
-        return Trajectory(str(path), dt, q, np.column_stack(vs), u)
+        return Trajectory(str(path), dt, q, np.column_stack(vs), u, sampled=sampled)
     pose = np.column_stack([np.interp(grid, *found.q[c]) for c in base_q])
     norm = np.linalg.norm(pose[:, 3:], axis=1)
     if np.any(norm < 0.5) or np.any(norm > 1.5):
@@ -522,7 +532,17 @@ def resample(
         )
     pose[:, 3:] /= norm[:, None]  # interpolated between samples: back onto the unit sphere
     twist = np.column_stack([np.interp(grid, *found.v[c]) for c in base_v])
-    return Trajectory(str(path), dt, q, np.column_stack(vs), u, pose, twist)
+    return Trajectory(str(path), dt, q, np.column_stack(vs), u, pose, twist, sampled)
+
+
+def _sampled(grid: np.ndarray, times: list[np.ndarray], dt: float) -> np.ndarray:
+    """Whether each grid time is within a quarter of ``dt`` of a sample of every signal."""
+    ok = np.ones(len(grid), dtype=bool)
+    for t in times:
+        i = np.clip(np.searchsorted(t, grid), 1, max(len(t) - 1, 1))
+        gap = np.minimum(np.abs(t[i] - grid), np.abs(t[i - 1] - grid))
+        ok &= gap <= 0.25 * dt
+    return ok
 
 
 def _hold(grid: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:

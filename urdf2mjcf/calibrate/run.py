@@ -84,10 +84,14 @@ def calibrate(
             held.append(tail)
     for p in cfg.holdout:
         held.append(trajectory(p))
-    short = [t.name for t in fitted + held if len(t.q) < 4]
-    if short:
-        raise InputError(f"too little data in {short[0]}: a log must span several model timesteps")
     applier = params.Applier(m, free)
+    history = fitting.history(applier)  # rows a replay with the longest delay reads first
+    short = [t.name for t in fitted + held if len(t.q) < 4 + history]
+    if short:
+        raise InputError(
+            f"too little data in {short[0]}: a log must span several model timesteps"
+            + (f" after the delay's upper bound ({history} of them)" if history else "")
+        )
     start = time.perf_counter()
     replay = fitting.Replay(applier, fitted, cfg.fit)
     nominal = np.array([p.nominal for p in free])
@@ -107,7 +111,7 @@ def calibrate(
         replay.samples,
         ", ".join(str(p) for p in cfg.holdout)
         or f"the last {cfg.holdout_fraction:.0%} of each log",
-        fitting.force_limited(applier.model(result.x), fitted),
+        fitting.force_limited(applier.model(result.x), fitted, applier.delay(result.x)),
     )
     for w in report.warnings(result, summary.force_limited):
         log.warning("%s", w)
