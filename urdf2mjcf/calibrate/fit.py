@@ -41,9 +41,9 @@ crosses a limit before the next step) ends the fit's window; the next starts aft
 There a clamped servo drops out of an implicit integrator's damping, and the replay's
 result jumps with the parameters."""
 STAGES = 5
-"""Fits in turn at most: the first with each signal weighed by its spread, the next by the
-noise the last left, each on the windows cut as the last stage's values have them, until
-that cut no longer changes."""
+"""Fits in turn at most: the first on the whole windows, uncut, each signal weighed by its
+spread; each next one weighed by the noise the last left, on the windows cut as the last
+stage's values have them, until that cut no longer changes."""
 MIN_WINDOW = 10
 """Steps a window between two such steps must span to be fitted."""
 PADDED = 2.0
@@ -152,8 +152,6 @@ class Replay:
                 for i, tr in enumerate(trajectories)
                 for k in range(h, len(tr.q) - length, length)  # k + length <= len - 1
             ]
-        else:
-            length = max(n for _, _, n in spans)
         # a window starts from a sampled state, not one interpolated between samples: an
         # interpolated state is on no trajectory, and its error is replayed all window long
         spans = [(i, *_sampled_start(self.trajectories[i], k, n)) for i, k, n in spans]
@@ -463,7 +461,8 @@ def fit(
     x = x0
     used: list[Replay] = []
     for stage in range(STAGES):
-        # windows cut where a servo nears its force limit, as the model at x has them
+        # after the first stage, the windows cut where a servo nears its force limit as the
+        # model at x has them (the nominal model's cut, its gains and delay off, misleads)
         work = replay.cut(replay.applier.model(x), replay.applier.delay(x)) if stage else replay
         if stage >= 2 and work.spans == used[-1].spans:
             work = used[-1]

@@ -536,10 +536,11 @@ def resample(
 
 
 def _sampled(grid: np.ndarray, times: list[np.ndarray], dt: float) -> np.ndarray:
-    """Whether each grid time is within a quarter of ``dt`` of a sample of every signal."""
+    """Whether each grid time is within a quarter of ``dt`` of a sample of every signal
+    (each signal's sorted times, two at least: `_columns` refuses fewer)."""
     ok = np.ones(len(grid), dtype=bool)
     for t in times:
-        i = np.clip(np.searchsorted(t, grid), 1, max(len(t) - 1, 1))
+        i = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
         gap = np.minimum(np.abs(t[i] - grid), np.abs(t[i - 1] - grid))
         ok &= gap <= 0.25 * dt
     return ok
